@@ -1,0 +1,41 @@
+# fuzzyservo: every target sets itself up (creates .venv when missing and installs the project).
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+# pyfuzzylite pins numpy<2, so the benchmark runs it in an environment of its own.
+FLVENV := .venv-fuzzylite
+PIP_QUIET := $(if $(CI),-q,)
+
+.PHONY: all reproduce test lint bench clean
+
+all: test
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install $(PIP_QUIET) --upgrade pip
+
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install $(PIP_QUIET) -e '.[test,bench]'
+	touch $(STAMP)
+
+$(FLVENV)/.installed-stamp:
+	$(PYTHON) -m venv $(FLVENV)
+	$(FLVENV)/bin/python -m pip install $(PIP_QUIET) 'pyfuzzylite>=8' 'numpy<2'
+	touch $@
+
+reproduce: $(STAMP)
+	$(BIN)/fuzzyservo reproduce --out results
+
+lint: $(STAMP)
+	$(BIN)/ruff check src tests benchmarks
+	$(BIN)/mypy src
+
+test: lint
+	$(BIN)/python -m pytest -n 2 -q
+
+bench: $(STAMP) $(FLVENV)/.installed-stamp
+	$(BIN)/python benchmarks/run_all.py --fuzzylite-python $(FLVENV)/bin/python
+
+clean:
+	rm -rf $(VENV) $(FLVENV) build *.egg-info src/*.egg-info .pytest_cache .mypy_cache .ruff_cache

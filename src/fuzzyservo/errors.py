@@ -1,0 +1,37 @@
+"""The exceptions fuzzyservo raises.
+
+Every error a user can cause derives from :class:`FuzzyServoError` and also from the matching
+built-in (``ValueError`` for bad input, ``RuntimeError`` for a run that fails), so callers may
+catch either. Messages name the offending item, its value and what is allowed; the CLI prints
+them on one line and exits with status 2.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "EmptyFuzzySetError",
+    "FuzzyServoError",
+    "InputError",
+    "ParameterError",
+    "SimulationDivergedError",
+]
+
+
+class FuzzyServoError(Exception):
+    """Base class of every error fuzzyservo raises on purpose."""
+
+
+class ParameterError(FuzzyServoError, ValueError):
+    """A parameter, specification or rule is outside what is allowed."""
+
+
+class InputError(FuzzyServoError, ValueError):
+    """A signal, file or command-line value is malformed (NaN, missing column, ...)."""
+
+
+class EmptyFuzzySetError(FuzzyServoError, ValueError):
+    """The aggregated output set is empty and the system declares no default output."""
+
+
+class SimulationDivergedError(FuzzyServoError, RuntimeError):
+    """A simulation produced a non-finite state; the message names the time and the state."""
