@@ -1,0 +1,191 @@
+"""Compiled core of the step-response metrics, shared by the batch kernel and the analysis API.
+
+:func:`step_metrics_core` fills a float64 buffer in the order of :data:`METRIC_NAMES` without
+allocating, so the batched closed-loop kernel can call it once per run on a reused per-thread
+buffer; :func:`fuzzyservo.analysis.step_metrics` validates its input, calls the same function and
+wraps the buffer in a frozen ``StepMetrics``. The definitions are those of python-control's
+``step_info`` (threshold crossings and band exits taken at samples, no interpolation), measured
+between an initial value ``y0`` and a target ``y_final``; ``docs/model.md`` ("Step metrics")
+defines each metric and says when it is NaN.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from .._typing import FloatArray
+
+__all__ = ["METRIC_NAMES", "N_METRICS", "step_metrics_core"]
+
+#: Names of the metrics, in the order :func:`step_metrics_core` writes them.
+METRIC_NAMES: tuple[str, ...] = (
+    "rise_time",
+    "settling_time",
+    "settling_time_5",
+    "overshoot",
+    "peak",
+    "peak_time",
+    "steady_state_error",
+    "iae",
+    "ise",
+    "itae",
+    "itse",
+    "u_max",
+    "u_sq_integral",
+    "u_total_variation",
+)
+
+#: Number of metrics; ``out`` must hold at least this many values.
+N_METRICS: int = len(METRIC_NAMES)
+
+_RISE, _SETTLE, _SETTLE2, _OS, _PEAK, _TPEAK, _ESS = 0, 1, 2, 3, 4, 5, 6
+_IAE, _ISE, _ITAE, _ITSE, _UMAX, _USQ, _UTV = 7, 8, 9, 10, 11, 12, 13
+
+
+@numba.njit(cache=True, nogil=True)
+def step_metrics_core(
+    t: FloatArray,
+    y: FloatArray,
+    u: FloatArray,
+    r: FloatArray,
+    y0: float,
+    y_final: float,
+    rise_lo: float,
+    rise_hi: float,
+    band: float,
+    band2: float,
+    out: FloatArray,
+) -> None:
+    """Write the step metrics of one response into ``out[:N_METRICS]``, allocating nothing.
+
+    Parameters
+    ----------
+    t : float64[:]
+        Sample times, strictly increasing; times are measured from ``t[0]`` [s].
+    y : float64[:]
+        Output samples, same length as ``t`` [unit of y].
+    u : float64[:]
+        Command samples, each held over ``[t[k], t[k+1])`` (zero-order hold); an array whose
+        length differs from ``len(t)`` (e.g. empty) means "no command": the three ``u_*``
+        metrics are then NaN [unit of u].
+    r : float64[:]
+        Reference samples, same length as ``t``; the error is ``e = r - y`` [unit of y].
+    y0 : float
+        Initial value the step starts from [unit of y].
+    y_final : float
+        Target of the step; rise, overshoot and settling are measured between ``y0`` and it
+        [unit of y].
+    rise_lo, rise_hi : float
+        Rise-time thresholds as fractions of ``y_final - y0``, ``0 <= rise_lo < rise_hi`` [1].
+    band, band2 : float
+        Half-widths of the settling bands around ``y_final`` as fractions of
+        ``|y_final - y0|`` (0.02 and 0.05 for ``settling_time`` and ``settling_time_5``) [1].
+    out : float64[:]
+        Output buffer of length at least ``N_METRICS``, filled in the order of
+        ``METRIC_NAMES`` [mixed units].
+
+    Notes
+    -----
+    The kernel assumes valid input (finite values, strictly increasing ``t``, ``len(t) >= 1``);
+    the analysis API validates. A metric the data cannot define is NaN: rise time, both
+    settling times and overshoot when ``y_final == y0``; rise time when ``y`` never reaches
+    ``rise_hi``; a settling time when the last sample is outside its band.
+    """
+    n = t.shape[0]
+    for i in range(N_METRICS):
+        out[i] = np.nan
+    if n == 0:
+        return
+    t0 = t[0]
+
+    # Peak: largest excursion from y0 (first sample attaining it).
+    k_pk = 0
+    d_max = -1.0
+    for k in range(n):
+        d = abs(y[k] - y0)
+        if d > d_max:
+            d_max = d
+            k_pk = k
+    out[_PEAK] = y[k_pk]
+    out[_TPEAK] = t[k_pk] - t0
+
+    span = y_final - y0
+    if span != 0.0 and math.isfinite(span):
+        s = 1.0 if span > 0.0 else -1.0
+        # Rise time: first samples at or beyond the two thresholds (python-control's rule).
+        lvl_lo = y0 + rise_lo * span
+        lvl_hi = y0 + rise_hi * span
+        k_lo = -1
+        for k in range(n):
+            if k_lo < 0 and s * (y[k] - lvl_lo) >= 0.0:
+                k_lo = k
+            if s * (y[k] - lvl_hi) >= 0.0:
+                out[_RISE] = t[k] - t[k_lo]
+                break
+        # Settling: the sample after the last one outside the band (|y - y_final| >= band).
+        half1 = band * abs(span)
+        half2 = band2 * abs(span)
+        last1 = -2
+        last2 = -2
+        for k in range(n - 1, -1, -1):
+            dev = abs(y[k] - y_final)
+            if last1 == -2 and dev >= half1:
+                last1 = k
+            if last2 == -2 and dev >= half2:
+                last2 = k
+            if last1 != -2 and last2 != -2:
+                break
+        k1 = 0 if last1 == -2 else last1 + 1
+        k2 = 0 if last2 == -2 else last2 + 1
+        if k1 < n:
+            out[_SETTLE] = t[k1] - t0
+        if k2 < n:
+            out[_SETTLE2] = t[k2] - t0
+        # Overshoot: largest excursion beyond the target in the step's direction [%].
+        os_max = 0.0
+        for k in range(n):
+            d = s * (y[k] - y_final)
+            if d > os_max:
+                os_max = d
+        out[_OS] = 100.0 * os_max / abs(span)
+
+    out[_ESS] = r[n - 1] - y[n - 1]
+
+    # Integral criteria of e = r - y, trapezoid on the samples, time from t[0].
+    iae = 0.0
+    ise = 0.0
+    itae = 0.0
+    itse = 0.0
+    for k in range(n - 1):
+        h = t[k + 1] - t[k]
+        ea = r[k] - y[k]
+        eb = r[k + 1] - y[k + 1]
+        ta = t[k] - t0
+        tb = t[k + 1] - t0
+        iae += 0.5 * h * (abs(ea) + abs(eb))
+        ise += 0.5 * h * (ea * ea + eb * eb)
+        itae += 0.5 * h * (ta * abs(ea) + tb * abs(eb))
+        itse += 0.5 * h * (ta * ea * ea + tb * eb * eb)
+    out[_IAE] = iae
+    out[_ISE] = ise
+    out[_ITAE] = itae
+    out[_ITSE] = itse
+
+    # Command metrics: u is zero-order held, so its integral is the exact left sum.
+    if u.shape[0] == n:
+        u_max = 0.0
+        u_sq = 0.0
+        u_tv = 0.0
+        for k in range(n):
+            a = abs(u[k])
+            if a > u_max:
+                u_max = a
+        for k in range(n - 1):
+            u_sq += u[k] * u[k] * (t[k + 1] - t[k])
+            u_tv += abs(u[k + 1] - u[k])
+        out[_UMAX] = u_max
+        out[_USQ] = u_sq
+        out[_UTV] = u_tv
