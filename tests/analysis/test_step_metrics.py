@@ -1,0 +1,195 @@
+"""``analysis.step_metrics`` against python-control, analytic integrals and its own contract."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import control as ct
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fuzzyservo.analysis import StepMetrics, step_metrics
+from fuzzyservo.errors import InputError, ParameterError
+from fuzzyservo.sim.stepinfo import METRIC_NAMES
+
+SYSTEMS = {
+    "docstring_rhp_zero": ct.tf([-1, 1], [1, 1, 1]),
+    "underdamped_2nd": ct.tf([4], [1, 1.2, 4]),  # wn = 2 rad/s, zeta = 0.3
+    "first_order": ct.tf([3], [0.5, 1]),  # tau = 0.5 s, gain 3
+    "lhp_zero": ct.tf([2, 1], [1, 2, 4]),
+    "third_order_nmp": ct.tf([-0.5, 1], [1, 3, 3, 1]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(SYSTEMS))
+def test_matches_python_control_step_info(name: str) -> None:
+    sys = SYSTEMS[name]
+    t, y = ct.step_response(sys, np.linspace(0.0, 40.0, 2001))  # long enough to settle
+    ref = ct.step_info(sys, T=t)
+    m = step_metrics(t, y, final_value=float(sys.dcgain()), initial_value=0.0)
+    dt = t[1] - t[0]
+    # acceptance: one sample in time, 0.5 % in amplitude (overshoot: 0.5 percentage points)
+    assert m.rise_time == pytest.approx(ref["RiseTime"], abs=dt)
+    assert m.settling_time == pytest.approx(ref["SettlingTime"], abs=dt)
+    assert m.peak_time == pytest.approx(ref["PeakTime"], abs=dt)
+    assert m.overshoot == pytest.approx(ref["Overshoot"], abs=0.5)
+    assert abs(m.peak) == pytest.approx(ref["Peak"], rel=0.005)
+
+
+def test_matches_python_control_on_response_data() -> None:
+    # step_info on a time series takes the last sample as the steady-state value, as we do
+    t, y = ct.step_response(SYSTEMS["underdamped_2nd"], 30.0)
+    ref = ct.step_info(y, T=t)
+    m = step_metrics(t, y)
+    dt = t[1] - t[0]
+    assert m.rise_time == pytest.approx(ref["RiseTime"], abs=dt)  # one sample
+    assert m.settling_time == pytest.approx(ref["SettlingTime"], abs=dt)  # one sample
+    assert m.overshoot == pytest.approx(ref["Overshoot"], abs=0.5)  # 0.5 % of amplitude
+
+
+def test_python_control_docstring_numbers() -> None:
+    # the values printed in python-control 0.10's step_info docstring (4 significant digits)
+    t, y = ct.step_response(SYSTEMS["docstring_rhp_zero"])
+    m = step_metrics(t, y, final_value=1.0)
+    dt = t[1] - t[0]
+    assert m.rise_time == pytest.approx(1.256, abs=dt)  # one sample
+    assert m.settling_time == pytest.approx(9.071, abs=dt)  # one sample
+    assert m.peak_time == pytest.approx(4.187, abs=dt)  # one sample
+    assert m.overshoot == pytest.approx(20.85, abs=0.5)  # 0.5 % of amplitude
+    assert m.peak == pytest.approx(1.208, rel=0.005)  # 0.5 % of amplitude
+
+
+def test_python_control_docstring_mimo_channel_with_5_percent_band() -> None:
+    s2 = math.sqrt(2.0)
+    sys = ct.ss([[-1.0, -1.0], [1.0, 0.0]], [[-1 / s2, 1 / s2], [0, 0]], [[s2, -s2]], [[0, 0]])
+    resp = ct.step_response(sys, T=10.0)
+    t, y = resp.time, resp.outputs[0, 1, :]
+    m = step_metrics(t, y, final_value=-1.0, initial_value=0.0, settle_band2=0.05)
+    dt = t[1] - t[0]
+    # docstring: RiseTime 1.212, SettlingTime 6.061 (5 %), Overshoot 20.87, Peak 1.209 at 4.242
+    assert m.rise_time == pytest.approx(1.212, abs=dt)  # one sample
+    assert m.settling_time_5 == pytest.approx(6.061, abs=dt)  # one sample
+    assert m.peak_time == pytest.approx(4.242, abs=dt)  # one sample
+    assert m.overshoot == pytest.approx(20.87, abs=0.5)  # 0.5 % of amplitude
+    assert m.peak == pytest.approx(-1.209, rel=0.005)  # signed: a negative step peaks below
+
+
+def test_never_reaching_90_percent_is_nan_not_exception() -> None:
+    t = np.linspace(0.0, 5.0, 501)
+    y = 0.8 * (1.0 - np.exp(-t))  # the loop stalls at 80 % of the target
+    m = step_metrics(t, y, r=1.0)
+    assert math.isnan(m.rise_time)
+    assert math.isnan(m.settling_time) and math.isnan(m.settling_time_5)
+    assert m.overshoot == 0.0  # exact: never above the target
+    assert m.steady_state_error == pytest.approx(0.2 + 0.8 * math.exp(-5.0), rel=1e-12)  # rounding
+
+
+def _trapezoid_bound(h: float, span: float, f2_max: float) -> float:
+    """Composite trapezoid error bound h² (b - a) max|f''| / 12."""
+    return h * h * span * f2_max / 12.0
+
+
+@pytest.mark.parametrize("tau", [0.05, 0.5, 2.0])
+def test_integral_criteria_of_first_order_response(tau: float) -> None:
+    # e(t) = exp(-t/tau): IAE, ISE, ITAE, ITSE in closed form on [0, T]
+    h, big_t = tau / 1000.0, 20.0 * tau
+    t = np.linspace(0.0, big_t, 20001)
+    m = step_metrics(t, 1.0 - np.exp(-t / tau), r=1.0)
+    x = big_t / tau
+    iae = tau * (1 - math.exp(-x))
+    ise = tau / 2 * (1 - math.exp(-2 * x))
+    itae = tau**2 * (1 - math.exp(-x) * (1 + x))
+    itse = (tau / 2) ** 2 * (1 - math.exp(-2 * x) * (1 + 2 * x))
+    # tolerance: the trapezoid error bound with max|e''| (1/tau², 4/tau², 2/tau, 4/tau)
+    assert m.iae == pytest.approx(iae, abs=_trapezoid_bound(h, big_t, 1 / tau**2))
+    assert m.ise == pytest.approx(ise, abs=_trapezoid_bound(h, big_t, 4 / tau**2))
+    assert m.itae == pytest.approx(itae, abs=_trapezoid_bound(h, big_t, 2 / tau))
+    assert m.itse == pytest.approx(itse, abs=_trapezoid_bound(h, big_t, 4 / tau))
+    # and the infinite-horizon textbook values tau, tau/2, tau², tau²/4 (e^-20 truncation)
+    assert m.iae == pytest.approx(tau, rel=1e-6)
+    assert m.itae == pytest.approx(tau**2, rel=1e-6)
+
+
+def test_command_metrics_of_a_sampled_cosine() -> None:
+    # one period of cos(2 pi t), ZOH: the left sum of cos² over a full period is exactly 1/2,
+    # samples include both extremes so the total variation is exactly 4 and max |u| is 1
+    t = np.linspace(0.0, 1.0, 401)
+    u = np.cos(2 * np.pi * t)
+    m = step_metrics(t, np.zeros_like(t), u=u, r=0.0)
+    assert m.u_sq_integral == pytest.approx(0.5, abs=1e-12)  # rounding only
+    assert m.u_total_variation == pytest.approx(4.0, abs=1e-12)  # rounding only
+    assert m.u_max == 1.0  # exact: cos(0) = 1
+
+
+def test_undefined_metrics_are_nan() -> None:
+    t = np.linspace(0.0, 1.0, 11)
+    y = np.linspace(0.0, 1.0, 11)
+    m = step_metrics(t, y)  # no reference, no command
+    assert math.isnan(m.steady_state_error)
+    assert math.isnan(m.u_max) and math.isnan(m.u_sq_integral)
+    flat = step_metrics(t, np.ones_like(t), r=1.0)  # nothing moves: there is no step
+    assert math.isnan(flat.rise_time) and math.isnan(flat.overshoot)
+    assert flat.iae == 0.0  # exact: e is identically zero
+
+
+def test_as_dict_follows_metric_names_and_is_frozen() -> None:
+    t = np.linspace(0.0, 1.0, 11)
+    m = step_metrics(t, t, r=1.0, u=t)
+    assert tuple(m.as_dict()) == METRIC_NAMES
+    assert tuple(f.name for f in dataclasses.fields(StepMetrics)) == METRIC_NAMES
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        m.rise_time = 0.0  # type: ignore[misc]
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    shift=st.floats(-1e3, 1e3, allow_nan=False),
+    zeta=st.floats(0.1, 1.5),
+    wn=st.floats(0.5, 5.0),
+)
+def test_metrics_ignore_a_time_shift(shift: float, zeta: float, wn: float) -> None:
+    sys = ct.tf([wn**2], [1, 2 * zeta * wn, wn**2])
+    t, y = ct.step_response(sys, np.linspace(0.0, 20.0, 801))
+    u = np.gradient(y, t)
+    a = step_metrics(t, y, r=1.0, u=u).as_dict()
+    b = step_metrics(t + shift, y, r=1.0, u=u).as_dict()
+    for name in METRIC_NAMES:
+        if math.isnan(a[name]):
+            assert math.isnan(b[name]), name
+        else:
+            # rounding of t + shift with |shift| <= 1e3: a few ulp of 1e3 per time value
+            assert b[name] == pytest.approx(a[name], rel=1e-9, abs=1e-9), name
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"t": [0.0, 1.0, 2.0], "y": [0.0, 1.0]}, "y has 2 samples"),
+        ({"t": [0.0, 2.0, 1.0], "y": [0.0, 1.0, 1.0]}, "strictly increasing"),
+        ({"t": [0.0, 1.0, 1.0], "y": [0.0, 1.0, 1.0]}, "strictly increasing"),
+        ({"t": [0.0, 1.0, 2.0], "y": [0.0, math.nan, 1.0]}, r"y\[1\] = nan is not finite"),
+        ({"t": [0.0, 1.0, 2.0], "y": [0.0, 1.0, 1.0], "u": [0.0, math.inf, 0.0]}, "u"),
+        ({"t": [0.0, 1.0, 2.0], "y": [0.0, 1.0, 1.0], "r": [1.0, 1.0]}, "r has 2"),
+        ({"t": [0.0], "y": [0.0]}, "at least 2"),
+        ({"t": [[0.0, 1.0]], "y": [0.0, 1.0]}, "one-dimensional"),
+        ({"t": [0.0, 1.0], "y": [0.0, 1.0], "final_value": math.nan}, "final_value"),
+        ({"t": [0.0, 1.0], "y": ["a", "b"]}, "array of numbers"),
+    ],
+)
+def test_malformed_input_raises_input_error(kwargs: dict[str, object], match: str) -> None:
+    kw = dict(kwargs)
+    t, y = kw.pop("t"), kw.pop("y")
+    with pytest.raises(InputError, match=match):
+        step_metrics(t, y, **kw)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [{"rise": (0.9, 0.1)}, {"rise": (-0.1, 0.9)}, {"settle_band": 0.0}, {"settle_band2": 1.5}],
+)
+def test_bad_options_raise_parameter_error(kwargs: dict[str, object]) -> None:
+    with pytest.raises(ParameterError):
+        step_metrics([0.0, 1.0], [0.0, 1.0], **kwargs)  # type: ignore[arg-type]
