@@ -17,6 +17,7 @@ from .errors import FuzzyServoError
 
 #: Subcommand modules, in the order ``--help`` lists them.
 COMMANDS: tuple[str, ...] = (
+    "metrics",
 )
 
 
