@@ -62,6 +62,54 @@ def test_python_control_docstring_numbers() -> None:
     assert m.peak == pytest.approx(1.208, rel=0.005)  # 0.5 % of amplitude
 
 
+# Published reference values: MathWorks' stepinfo help example and the MATLAB values kept in
+# python-control 0.10's tests/timeresp_test.py (name: system, final value, time vector, values).
+PUBLISHED = {
+    "matlab_stepinfo_help": (
+        ct.tf([1, 5, 5], [1, 1.65, 5, 6.5, 2]), 2.5, None,
+        {"rise": 3.8456, "settle": 27.9762, "os": 7.4915, "peak": 2.6873, "tpeak": 8.0530},
+    ),
+    "siso_tf_kpos": (
+        ct.tf([-1, 1], [1, 1, 1]), 1.0, None,
+        {"rise": 1.242, "settle": 9.110, "os": 20.840, "peak": 1.208, "tpeak": 4.282},
+    ),
+    "siso_tf_kneg": (
+        ct.tf([1, -1], [1, 1, 1]), -1.0, None,
+        {"rise": 1.242, "settle": 9.110, "os": 20.840, "peak": -1.208, "tpeak": 4.282},
+    ),
+    "siso_tf_asymptotic_from_neg1": (
+        ct.tf([-1, 1], [1, 1]), 1.0, np.arange(0, 5, 1e-3),
+        {"rise": 2.197, "settle": 4.605, "os": 0.0, "peak": -1.0, "tpeak": 0.0},
+    ),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(PUBLISHED))
+def test_published_step_info_values(name: str) -> None:
+    sys, yf, tt, ref = PUBLISHED[name]
+    t, y = ct.step_response(sys, tt)
+    m = step_metrics(t, y, final_value=yf, initial_value=0.0)  # python-control measures from 0
+    dt = t[1] - t[0]
+    # one sample in time (MATLAB interpolates, we and python-control take samples)
+    assert m.rise_time == pytest.approx(ref["rise"], abs=dt)
+    assert m.settling_time == pytest.approx(ref["settle"], abs=dt)
+    assert m.peak_time == pytest.approx(ref["tpeak"], abs=dt)
+    # 0.5 % in amplitude; overshoot is already a percentage, so 0.5 points
+    assert m.overshoot == pytest.approx(ref["os"], abs=0.5)
+    assert m.peak == pytest.approx(ref["peak"], rel=0.005)
+
+
+def test_default_initial_value_is_first_sample() -> None:
+    # y = 1 - 2 exp(-t) jumps to -1 at t = 0 (feedthrough). python-control measures the 2 %
+    # band from 0 (|y - 1| < 0.02 -> ln 100); our default y0 = y[0] = -1 doubles the span
+    # (|y - 1| < 0.04 -> ln 50). Both are exact to one sample.
+    t, y = ct.step_response(ct.tf([-1, 1], [1, 1]), np.arange(0, 8, 1e-3))
+    assert step_metrics(t, y, r=1.0).settling_time == pytest.approx(math.log(50), abs=1e-3)
+    assert step_metrics(t, y, r=1.0, initial_value=0.0).settling_time == pytest.approx(
+        math.log(100), abs=1e-3
+    )  # one sample, 1 ms
+
+
 def test_python_control_docstring_mimo_channel_with_5_percent_band() -> None:
     s2 = math.sqrt(2.0)
     sys = ct.ss([[-1.0, -1.0], [1.0, 0.0]], [[-1 / s2, 1 / s2], [0, 0]], [[s2, -s2]], [[0, 0]])
