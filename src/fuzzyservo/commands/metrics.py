@@ -51,7 +51,7 @@ def register(subparsers: Any) -> None:
         "metrics",
         help="step-response metrics of a run CSV",
         description=(
-            "Print rise time (10-90 %%), settling times (2 %% and 5 %% bands), overshoot, peak, "
+            "Print rise time (10-90 %), settling times (2 % and 5 % bands), overshoot, peak, "
             "steady-state error, IAE, ISE, ITAE, ITSE and command metrics of a CSV written by "
             "'fuzzyservo simulate' (columns t, r, y, u). The target is the last reference "
             "value; a metric the data cannot define is nan (null in JSON)."
