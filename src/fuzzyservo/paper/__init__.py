@@ -1,1 +1,24 @@
-"""fuzzyservo.paper."""
+"""fuzzyservo.paper: the paper's data (rule bases of Fig. 3; parameter sets)."""
+
+from __future__ import annotations
+
+from .published import (
+    PHYSICAL_CHOICES,
+    SET_NAMES,
+    TABLE_A1,
+    named_set,
+    paper_params,
+    stiff_oil_params,
+)
+from .rulebases import alpha_system, du_system
+
+__all__ = [
+    "PHYSICAL_CHOICES",
+    "SET_NAMES",
+    "TABLE_A1",
+    "alpha_system",
+    "du_system",
+    "named_set",
+    "paper_params",
+    "stiff_oil_params",
+]

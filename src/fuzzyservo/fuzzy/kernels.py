@@ -1,0 +1,251 @@
+"""Compiled kernels for two-input Mamdani systems on uniform triangular partitions.
+
+This is the hot path of the fuzzy PI and self-tuning controllers: ``eval_uniform_grid`` is
+called inside numba kernels once per controller sample (twice for the self-tuning controller),
+so it allocates nothing and visits only the output labels that fired.
+
+Contract (docs/architecture.md, "Fuzzy kernel"):
+
+- inputs ``x1`` (e, columns) and ``x2`` (Δe, rows) are each covered by ``rules.shape[1]`` and
+  ``rules.shape[0]`` uniform triangles on ``[lims[0], lims[1]]`` and ``[lims[2], lims[3]]``
+  (peaks at ``lo + k (hi - lo) / (n - 1)``, 50 % overlap, the end triangles cut at the universe
+  ends); inputs are clipped to the universes; a NaN input gives NaN;
+- ``rules[i2, i1]`` is the output label index (0 .. n_out - 1) or -1 for "no rule";
+- the output is ``int(lims[6])`` uniform triangles on ``[lims[4], lims[5]]``; min AND, min
+  implication, max aggregation, exact centroid over the output universe; ``lims[7]`` is the
+  value returned when no rule fires.
+
+Notes
+-----
+Between two adjacent output peaks p_j and p_j+1 only the falling edge of triangle j and the
+rising edge of triangle j+1 are non-zero. With s = (y - p_j) / d in [0, 1] the aggregate there is
+g(s) = max(min(a, 1 - s), min(b, s)), a and b the clip heights of labels j and j+1. The two
+clipped edges cross once, at c = 1/2 (a, b >= 1/2), c = a (a <= b) or c = 1 - b (otherwise), so
+the area and first moment of g are sums of integrals of clipped linear functions, computed in
+closed form below. No sampling and no sorting is involved.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from .._typing import FloatArray, IntArray
+
+__all__ = [
+    "LIMS_SIZE",
+    "eval_uniform_batch",
+    "eval_uniform_checked",
+    "eval_uniform_grid",
+    "segment_integrals",
+]
+
+#: Length of the ``lims`` vector: lo1, hi1, lo2, hi2, out_lo, out_hi, n_out, default.
+LIMS_SIZE = 8
+
+
+@numba.njit(cache=True, nogil=True)
+def segment_integrals(a: float, b: float) -> tuple[float, float]:
+    """Area and first moment over s in [0, 1] of max(min(a, 1 - s), min(b, s)).
+
+    Parameters
+    ----------
+    a : float
+        Clip height of the falling edge (label j), in [0, 1].
+    b : float
+        Clip height of the rising edge (label j + 1), in [0, 1].
+
+    Returns
+    -------
+    area, moment : float
+        Integral of g(s) and of s g(s) over [0, 1] (dimensionless).
+    """
+    if a >= 0.5 and b >= 0.5:
+        c = 0.5
+    elif a <= b:
+        c = a
+    else:
+        c = 1.0 - b
+    # falling part, min(a, 1 - s) on [0, c]; its knee is at s = 1 - a
+    knee = 1.0 - a
+    if c <= knee:
+        area = a * c
+        moment = 0.5 * a * c * c
+    else:
+        r = 1.0 - c
+        area = a * knee + 0.5 * (a * a - r * r)
+        moment = (
+            0.5 * a * knee * knee
+            + 0.5 * (c * c - knee * knee)
+            - (c * c * c - knee * knee * knee) / 3.0
+        )
+    # rising part, min(b, s) on [c, 1]; its knee is at s = b
+    if c >= b:
+        area += b * (1.0 - c)
+        moment += 0.5 * b * (1.0 - c * c)
+    else:
+        area += 0.5 * (b * b - c * c) + b * (1.0 - b)
+        moment += (b * b * b - c * c * c) / 3.0 + 0.5 * b * (1.0 - b * b)
+    return area, moment
+
+
+@numba.njit(cache=True, nogil=True)
+def _height(
+    j: int, la: int, wa: float, lb: int, wb: float, lc: int, wc: float, ld: int, wd: float
+) -> float:
+    """Clip height of output label j: the largest strength of the four rules naming it."""
+    h = 0.0
+    if la == j and wa > h:
+        h = wa
+    if lb == j and wb > h:
+        h = wb
+    if lc == j and wc > h:
+        h = wc
+    if ld == j and wd > h:
+        h = wd
+    return h
+
+
+@numba.njit(cache=True, nogil=True)
+def _label_terms(
+    j: int,
+    w: float,
+    n_out: int,
+    la: int, wa: float, lb: int, wb: float, lc: int, wc: float, ld: int, wd: float,
+) -> tuple[float, float, float]:
+    """(area, sum of p-index * area, moment) of the output segments that label j owns."""
+    area = 0.0
+    parea = 0.0
+    moment = 0.0
+    if w <= 0.0 or j < 0:
+        return area, parea, moment
+    h = _height(j, la, wa, lb, wb, lc, wc, ld, wd)
+    if j < n_out - 1:
+        ar, mo = segment_integrals(h, _height(j + 1, la, wa, lb, wb, lc, wc, ld, wd))
+        area += ar
+        parea += j * ar
+        moment += mo
+    if j > 0 and _height(j - 1, la, wa, lb, wb, lc, wc, ld, wd) <= 0.0:
+        ar, mo = segment_integrals(0.0, h)
+        area += ar
+        parea += (j - 1) * ar
+        moment += mo
+    return area, parea, moment
+
+
+@numba.njit(cache=True, nogil=True)
+def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -> float:
+    """Crisp output of a two-input min/min/max/centroid system on uniform triangles.
+
+    Parameters
+    ----------
+    x1 : float
+        First input (e, selects the column of ``rules``); clipped to ``[lims[0], lims[1]]``.
+    x2 : float
+        Second input (Δe, selects the row of ``rules``); clipped to ``[lims[2], lims[3]]``.
+    rules : int64[:, :]
+        ``rules[i2, i1]`` = output label index, or -1 for no rule; at least 2 x 2.
+    lims : float64[8]
+        lo1, hi1, lo2, hi2, output lo, output hi, number of output labels (>= 2), default.
+
+    Returns
+    -------
+    float
+        Exact centroid of the aggregated output over the output universe; ``lims[7]`` when no
+        rule fires; NaN when an input is NaN.
+    """
+    if x1 != x1 or x2 != x2:
+        return np.nan
+    n2 = rules.shape[0]
+    n1 = rules.shape[1]
+    lo1 = lims[0]
+    hi1 = lims[1]
+    lo2 = lims[2]
+    hi2 = lims[3]
+    if x1 < lo1:
+        x1 = lo1
+    elif x1 > hi1:
+        x1 = hi1
+    if x2 < lo2:
+        x2 = lo2
+    elif x2 > hi2:
+        x2 = hi2
+    t1 = (x1 - lo1) / (hi1 - lo1) * (n1 - 1)
+    t2 = (x2 - lo2) / (hi2 - lo2) * (n2 - 1)
+    k1 = int(t1)
+    if k1 > n1 - 2:
+        k1 = n1 - 2
+    k2 = int(t2)
+    if k2 > n2 - 2:
+        k2 = n2 - 2
+    f1 = t1 - k1
+    f2 = t2 - k2
+    g1 = 1.0 - f1
+    g2 = 1.0 - f2
+    # the (at most) four rules that fire, with their min-AND strengths
+    la = rules[k2, k1]
+    wa = min(g1, g2)
+    lb = rules[k2, k1 + 1]
+    wb = min(f1, g2)
+    lc = rules[k2 + 1, k1]
+    wc = min(g1, f2)
+    ld = rules[k2 + 1, k1 + 1]
+    wd = min(f1, f2)
+    if la < 0:
+        wa = 0.0
+    if lb < 0:
+        wb = 0.0
+    if lc < 0:
+        wc = 0.0
+    if ld < 0:
+        wd = 0.0
+    n_out = int(lims[6])
+    area = 0.0
+    parea = 0.0
+    moment = 0.0
+    # each distinct fired label once (a label seen earlier with positive strength is skipped)
+    ar, pa, mo = _label_terms(la, wa, n_out, la, wa, lb, wb, lc, wc, ld, wd)
+    area += ar
+    parea += pa
+    moment += mo
+    if not (lb == la and wa > 0.0):
+        ar, pa, mo = _label_terms(lb, wb, n_out, la, wa, lb, wb, lc, wc, ld, wd)
+        area += ar
+        parea += pa
+        moment += mo
+    if not ((lc == la and wa > 0.0) or (lc == lb and wb > 0.0)):
+        ar, pa, mo = _label_terms(lc, wc, n_out, la, wa, lb, wb, lc, wc, ld, wd)
+        area += ar
+        parea += pa
+        moment += mo
+    if not ((ld == la and wa > 0.0) or (ld == lb and wb > 0.0) or (ld == lc and wc > 0.0)):
+        ar, pa, mo = _label_terms(ld, wd, n_out, la, wa, lb, wb, lc, wc, ld, wd)
+        area += ar
+        parea += pa
+        moment += mo
+    if area <= 0.0:
+        return lims[7]
+    lo = lims[4]
+    d = (lims[5] - lo) / (n_out - 1)
+    # centroid = sum(p_j A_j + d M_j) / sum(A_j), p_j = lo + j d (the factor d of dy cancels)
+    return lo + d * (parea + moment) / area
+
+
+@numba.njit(cache=True, nogil=True)
+def eval_uniform_checked(x1: float, x2: float, rules: IntArray, lims: FloatArray) -> float:
+    """As :func:`eval_uniform_grid`, but NaN whenever an input is not finite (NaN or ±inf).
+
+    The scalar Python API calls this and turns a NaN result into one ``InputError``.
+    """
+    if not (abs(x1) < np.inf and abs(x2) < np.inf):
+        return np.nan
+    return eval_uniform_grid(x1, x2, rules, lims)
+
+
+@numba.njit(cache=True, nogil=True)
+def eval_uniform_batch(
+    x1: FloatArray, x2: FloatArray, rules: IntArray, lims: FloatArray, out: FloatArray
+) -> None:
+    """Fill ``out[i] = eval_uniform_grid(x1[i], x2[i], rules, lims)`` (1-D arrays, one core)."""
+    for i in range(out.shape[0]):
+        out[i] = eval_uniform_grid(x1[i], x2[i], rules, lims)

@@ -1,0 +1,75 @@
+"""The paper's two fuzzy systems (Aly et al. 2012, Fig. 3; identical to Mudi & Pal 1999).
+
+Both tables are transcribed once, as printed: rows Δe, columns e, both ordered NB .. PB.
+The inputs e and Δe, and the output Δu, have seven uniform triangles on [-1, 1]; the gain
+updating factor α has seven uniform triangles ZO, VS, S, SB, MB, B, VB on [0, 1] peaking at
+k/6. Inference is Mamdani min AND, min implication, max aggregation, centroid over the output
+universe ("MOR" and "COA" in the paper).
+"""
+
+from __future__ import annotations
+
+from ..fuzzy import LinguisticVariable, MamdaniSpec, MamdaniSystem, RuleBase
+
+__all__ = ["ALPHA_LABELS", "ALPHA_TABLE", "DU_TABLE", "LABELS", "alpha_system", "du_system"]
+
+#: Labels of e, Δe and Δu, from negative big to positive big.
+LABELS: tuple[str, ...] = ("NB", "NM", "NS", "ZO", "PS", "PM", "PB")
+#: Labels of α, from zero to very big.
+ALPHA_LABELS: tuple[str, ...] = ("ZO", "VS", "S", "SB", "MB", "B", "VB")
+
+#: Fig. 3a, rule table for Δu: DU_TABLE[row Δe][column e].
+DU_TABLE: tuple[tuple[str, ...], ...] = (
+    ("NB", "NB", "NB", "NM", "NS", "NS", "ZO"),  # Δe = NB
+    ("NB", "NM", "NM", "NM", "NS", "ZO", "PS"),  # Δe = NM
+    ("NB", "NM", "NS", "NS", "ZO", "PS", "PM"),  # Δe = NS
+    ("NB", "NM", "NS", "ZO", "PS", "PM", "PB"),  # Δe = ZO
+    ("NM", "NS", "ZO", "PS", "PS", "PM", "PB"),  # Δe = PS
+    ("NS", "ZO", "PS", "PM", "PM", "PM", "PB"),  # Δe = PM
+    ("ZO", "PS", "PS", "PM", "PB", "PB", "PB"),  # Δe = PB
+)
+
+#: Fig. 3b, rule table for α: ALPHA_TABLE[row Δe][column e].
+ALPHA_TABLE: tuple[tuple[str, ...], ...] = (
+    ("VB", "VB", "VB", "B", "SB", "S", "ZO"),  # Δe = NB
+    ("VB", "VB", "B", "B", "MB", "S", "VS"),  # Δe = NM
+    ("VB", "MB", "B", "VB", "VS", "S", "VS"),  # Δe = NS
+    ("S", "SB", "MB", "ZO", "MB", "SB", "S"),  # Δe = ZO
+    ("VS", "S", "VS", "VB", "B", "MB", "VB"),  # Δe = PS
+    ("VS", "S", "MB", "B", "B", "VB", "VB"),  # Δe = PM
+    ("ZO", "S", "SB", "B", "VB", "VB", "VB"),  # Δe = PB
+)
+
+
+def _inputs() -> tuple[LinguisticVariable, LinguisticVariable]:
+    e = LinguisticVariable.uniform("e", (-1.0, 1.0), LABELS)
+    de = LinguisticVariable.uniform("de", (-1.0, 1.0), LABELS)
+    return e, de
+
+
+def du_system() -> MamdaniSystem:
+    """The fuzzy PI's Δu system of Fig. 3a (normalised e, Δe -> Δu_n, all on [-1, 1]).
+
+    Examples
+    --------
+    >>> round(du_system().evaluate(1.0, 1.0), 12)   # centroid of a half triangle: 8/9
+    0.888888888889
+    """
+    e, de = _inputs()
+    du = LinguisticVariable.uniform("du", (-1.0, 1.0), LABELS)
+    rules = RuleBase.from_table(DU_TABLE, columns=e, rows=de, output=du)
+    return MamdaniSystem(rules=rules, spec=MamdaniSpec())
+
+
+def alpha_system() -> MamdaniSystem:
+    """The self-tuning gain-updating factor α of Fig. 3b (e, Δe on [-1, 1] -> α on [0, 1]).
+
+    Examples
+    --------
+    >>> round(alpha_system().evaluate(0.0, 0.0), 12)   # 1/18
+    0.055555555556
+    """
+    e, de = _inputs()
+    alpha = LinguisticVariable.uniform("alpha", (0.0, 1.0), ALPHA_LABELS)
+    rules = RuleBase.from_table(ALPHA_TABLE, columns=e, rows=de, output=alpha)
+    return MamdaniSystem(rules=rules, spec=MamdaniSpec())
