@@ -16,6 +16,7 @@ ALLOWED: dict[str, set[str]] = {
     "analysis": {"sim", "control", "plant", "fuzzy"},
     "plots": {"analysis", "sim", "control", "plant", "fuzzy", "paper"},
     "paper": {"fuzzy", "plant", "control"},
+    "study": {"fuzzy", "plant", "control", "sim", "analysis", "plots", "paper"},
 }
 ALWAYS = {"errors", "_typing"}
 
