@@ -19,10 +19,15 @@ Notes
 -----
 Between two adjacent output peaks p_j and p_j+1 only the falling edge of triangle j and the
 rising edge of triangle j+1 are non-zero. With s = (y - p_j) / d in [0, 1] the aggregate there is
-g(s) = max(min(a, 1 - s), min(b, s)), a and b the clip heights of labels j and j+1. The two
-clipped edges cross once, at c = 1/2 (a, b >= 1/2), c = a (a <= b) or c = 1 - b (otherwise), so
-the area and first moment of g are sums of integrals of clipped linear functions, computed in
-closed form below. No sampling and no sorting is involved.
+g(s) = max(F, R), F = min(a, 1 - s), R = min(b, s), a and b the clip heights of labels j and
+j+1. Since max(F, R) = F + R - min(F, R) and min(F, R) = min(m, s, 1 - s) with
+m = min(a, b, 1/2) is a trapezoid symmetric about s = 1/2, the area and first moment are
+
+    area   = a - a^2/2 + b - b^2/2 - (m - m^2)
+    moment = (a - a^2 + b - (m - m^2)) / 2 + (a^3 - b^3) / 6
+
+(integrals of F: a - a^2/2 and a/2 - a^2/2 + a^3/6; of R: b - b^2/2 and b/2 - b^3/6).
+No sampling, no sorting and no branch is involved.
 """
 
 from __future__ import annotations
@@ -42,9 +47,10 @@ __all__ = [
 
 #: Length of the ``lims`` vector: lo1, hi1, lo2, hi2, out_lo, out_hi, n_out, default.
 LIMS_SIZE = 8
+_SIXTH = 1.0 / 6.0
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def segment_integrals(a: float, b: float) -> tuple[float, float]:
     """Area and first moment over s in [0, 1] of max(min(a, 1 - s), min(b, s)).
 
@@ -60,80 +66,27 @@ def segment_integrals(a: float, b: float) -> tuple[float, float]:
     area, moment : float
         Integral of g(s) and of s g(s) over [0, 1] (dimensionless).
     """
-    if a >= 0.5 and b >= 0.5:
-        c = 0.5
-    elif a <= b:
-        c = a
-    else:
-        c = 1.0 - b
-    # falling part, min(a, 1 - s) on [0, c]; its knee is at s = 1 - a
-    knee = 1.0 - a
-    if c <= knee:
-        area = a * c
-        moment = 0.5 * a * c * c
-    else:
-        r = 1.0 - c
-        area = a * knee + 0.5 * (a * a - r * r)
-        moment = (
-            0.5 * a * knee * knee
-            + 0.5 * (c * c - knee * knee)
-            - (c * c * c - knee * knee * knee) / 3.0
-        )
-    # rising part, min(b, s) on [c, 1]; its knee is at s = b
-    if c >= b:
-        area += b * (1.0 - c)
-        moment += 0.5 * b * (1.0 - c * c)
-    else:
-        area += 0.5 * (b * b - c * c) + b * (1.0 - b)
-        moment += (b * b * b - c * c * c) / 3.0 + 0.5 * b * (1.0 - b * b)
+    # max(F, R) = F + R - min(F, R) with F = min(a, 1 - s), R = min(b, s); min(F, R) is the
+    # trapezoid min(m, s, 1 - s), m = min(a, b, 1/2), symmetric about s = 1/2 (area m - m^2)
+    m = min(a, b, 0.5)
+    tm = m - m * m
+    area = a - 0.5 * a * a + b - 0.5 * b * b - tm
+    moment = 0.5 * (a - a * a + b - tm) + (a * a * a - b * b * b) * _SIXTH
     return area, moment
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _height(
     j: int, la: int, wa: float, lb: int, wb: float, lc: int, wc: float, ld: int, wd: float
 ) -> float:
     """Clip height of output label j: the largest strength of the four rules naming it."""
-    h = 0.0
-    if la == j and wa > h:
-        h = wa
-    if lb == j and wb > h:
-        h = wb
-    if lc == j and wc > h:
-        h = wc
-    if ld == j and wd > h:
-        h = wd
-    return h
+    return max(
+        max(wa if la == j else 0.0, wb if lb == j else 0.0),
+        max(wc if lc == j else 0.0, wd if ld == j else 0.0),
+    )
 
 
-@numba.njit(cache=True, nogil=True)
-def _label_terms(
-    j: int,
-    w: float,
-    n_out: int,
-    la: int, wa: float, lb: int, wb: float, lc: int, wc: float, ld: int, wd: float,
-) -> tuple[float, float, float]:
-    """(area, sum of p-index * area, moment) of the output segments that label j owns."""
-    area = 0.0
-    parea = 0.0
-    moment = 0.0
-    if w <= 0.0 or j < 0:
-        return area, parea, moment
-    h = _height(j, la, wa, lb, wb, lc, wc, ld, wd)
-    if j < n_out - 1:
-        ar, mo = segment_integrals(h, _height(j + 1, la, wa, lb, wb, lc, wc, ld, wd))
-        area += ar
-        parea += j * ar
-        moment += mo
-    if j > 0 and _height(j - 1, la, wa, lb, wb, lc, wc, ld, wd) <= 0.0:
-        ar, mo = segment_integrals(0.0, h)
-        area += ar
-        parea += (j - 1) * ar
-        moment += mo
-    return area, parea, moment
-
-
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -> float:
     """Crisp output of a two-input min/min/max/centroid system on uniform triangles.
 
@@ -199,30 +152,38 @@ def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -
         wc = 0.0
     if ld < 0:
         wd = 0.0
+    # the fired labels span lmin .. lmax; visit the segments between adjacent output peaks
+    # from lmin - 1 to lmax (each is [p_j, p_j+1]); segments with no fired end are skipped
     n_out = int(lims[6])
+    lmin = n_out
+    lmax = -1
+    if wa > 0.0:
+        lmin = min(lmin, la)
+        lmax = max(lmax, la)
+    if wb > 0.0:
+        lmin = min(lmin, lb)
+        lmax = max(lmax, lb)
+    if wc > 0.0:
+        lmin = min(lmin, lc)
+        lmax = max(lmax, lc)
+    if wd > 0.0:
+        lmin = min(lmin, ld)
+        lmax = max(lmax, ld)
     area = 0.0
     parea = 0.0
     moment = 0.0
-    # each distinct fired label once (a label seen earlier with positive strength is skipped)
-    ar, pa, mo = _label_terms(la, wa, n_out, la, wa, lb, wb, lc, wc, ld, wd)
-    area += ar
-    parea += pa
-    moment += mo
-    if not (lb == la and wa > 0.0):
-        ar, pa, mo = _label_terms(lb, wb, n_out, la, wa, lb, wb, lc, wc, ld, wd)
-        area += ar
-        parea += pa
-        moment += mo
-    if not ((lc == la and wa > 0.0) or (lc == lb and wb > 0.0)):
-        ar, pa, mo = _label_terms(lc, wc, n_out, la, wa, lb, wb, lc, wc, ld, wd)
-        area += ar
-        parea += pa
-        moment += mo
-    if not ((ld == la and wa > 0.0) or (ld == lb and wb > 0.0) or (ld == lc and wc > 0.0)):
-        ar, pa, mo = _label_terms(ld, wd, n_out, la, wa, lb, wb, lc, wc, ld, wd)
-        area += ar
-        parea += pa
-        moment += mo
+    j = max(lmin - 1, 0)
+    jend = min(lmax, n_out - 2)
+    ha = _height(j, la, wa, lb, wb, lc, wc, ld, wd)
+    while j <= jend:
+        hb = _height(j + 1, la, wa, lb, wb, lc, wc, ld, wd)
+        if ha > 0.0 or hb > 0.0:
+            ar, mo = segment_integrals(ha, hb)
+            area += ar
+            parea += j * ar
+            moment += mo
+        ha = hb
+        j += 1
     if area <= 0.0:
         return lims[7]
     lo = lims[4]
@@ -231,7 +192,7 @@ def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -
     return lo + d * (parea + moment) / area
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def eval_uniform_checked(x1: float, x2: float, rules: IntArray, lims: FloatArray) -> float:
     """As :func:`eval_uniform_grid`, but NaN whenever an input is not finite (NaN or ±inf).
 
@@ -242,7 +203,7 @@ def eval_uniform_checked(x1: float, x2: float, rules: IntArray, lims: FloatArray
     return eval_uniform_grid(x1, x2, rules, lims)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def eval_uniform_batch(
     x1: FloatArray, x2: FloatArray, rules: IntArray, lims: FloatArray, out: FloatArray
 ) -> None:
