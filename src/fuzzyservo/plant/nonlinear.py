@@ -28,7 +28,8 @@ Named physical limits (documented in docs/model.md):
 - ``COMMAND_LIMIT``: |u| <= 1, the rated input.
 - end-stop cushions: a spring-damper ``cylinder.stop_stiffness/stop_damping`` acting beyond
   0 and L, pushing only;
-- pressure floor: ``fluid.pressure_floor``; a chamber pressure at or below it cannot fall;
+- pressure floor: ``fluid.pressure_floor``; a falling chamber pressure slows smoothly over
+  ``PRESSURE_FLOOR_BAND`` above it and stops at it (:func:`floor_factor`);
 - volume floor: the cylinder part of a chamber volume is not allowed below 0 (inside the
   cushion), the hose volume remains.
 """
@@ -48,6 +49,7 @@ __all__ = [
     "COMMAND_LIMIT",
     "N_PARAMS",
     "N_STATE",
+    "PRESSURE_FLOOR_BAND",
     "NonlinearServo",
     "STATE_NAMES",
     "STATE_UNITS",
@@ -62,6 +64,9 @@ STATE_NAMES: tuple[str, ...] = ("spool_lag", "spool", "spool_rate", "p_f", "p_n"
 STATE_UNITS: tuple[str, ...] = ("1", "1", "1/s", "Pa", "Pa", "m", "m/s")
 N_STATE = len(STATE_NAMES)
 S_LAG, S_SPOOL, S_RATE, S_PF, S_PN, S_X, S_V = range(N_STATE)
+
+#: Width of the smooth pressure floor above ``fluid.pressure_floor`` [Pa].
+PRESSURE_FLOOR_BAND = 1.0e5
 
 #: The valve command is a fraction of rated input and is limited to [-COMMAND_LIMIT, COMMAND_LIMIT].
 COMMAND_LIMIT = 1.0
@@ -196,6 +201,22 @@ def stop_force(x: float, v: float, p: FloatArray) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
+def floor_factor(pressure: float, floor: float) -> float:
+    """Factor on a falling chamber pressure's rate: 0 at the floor, 1 from floor + band up.
+
+    A smoothstep over ``PRESSURE_FLOOR_BAND`` (air release below atmospheric pressure lowers
+    the effective bulk modulus to nothing); a rising pressure is never slowed. Smooth, so the
+    fixed-step integrator keeps its order when a chamber cavitates.
+    """
+    z = (pressure - floor) / PRESSURE_FLOOR_BAND
+    if z <= 0.0:
+        return 0.0
+    if z >= 1.0:
+        return 1.0
+    return z * z * (3.0 - 2.0 * z)
+
+
+@numba.njit(cache=True, nogil=True)
 def rhs(t: float, x: FloatArray, u: float, p: FloatArray, dx: FloatArray) -> None:
     """Write dx/dt of the nonlinear servo into ``dx`` (no allocation).
 
@@ -253,11 +274,10 @@ def rhs(t: float, x: FloatArray, u: float, p: FloatArray, dx: FloatArray) -> Non
     cn = vcn / p[P_BC] + p[P_CH]
     dpf = (qf - af * vp - qi) / cf
     dpn = (-qn + an * vp + qi) / cn
-    floor = p[P_PFLOOR]
-    if pf <= floor and dpf < 0.0:
-        dpf = 0.0
-    if pn <= floor and dpn < 0.0:
-        dpn = 0.0
+    if dpf < 0.0:
+        dpf *= floor_factor(pf, p[P_PFLOOR])
+    if dpn < 0.0:
+        dpn *= floor_factor(pn, p[P_PFLOOR])
     dx[S_PF] = dpf
     dx[S_PN] = dpn
 

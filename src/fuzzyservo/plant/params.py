@@ -165,7 +165,7 @@ class LoadParams:
     coulomb_friction: float = 0.0  #: Coulomb friction F_c [N]
     static_friction: float = 0.0  #: breakaway (Stribeck peak) friction F_s >= F_c [N]
     stribeck_velocity: float = 0.01  #: Stribeck velocity v_s [m/s]
-    friction_smoothing_velocity: float = 1.0e-4  #: ε of tanh(v/ε) replacing sgn(v) [m/s]
+    friction_smoothing_velocity: float = 1.0e-3  #: ε of tanh(v/ε) replacing sgn(v) [m/s]
     external_force: float = 0.0  #: load force F_L opposing extension [N]
 
     def __post_init__(self) -> None:
