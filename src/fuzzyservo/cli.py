@@ -18,6 +18,8 @@ from .errors import FuzzyServoError
 #: Subcommand modules, in the order ``--help`` lists them.
 COMMANDS: tuple[str, ...] = (
     "metrics",
+    "linearize",
+    "simulate",
 )
 
 

@@ -1,0 +1,70 @@
+"""Shared CLI options that select the servo parameters: ``--set``, ``--params``, ``--param``.
+
+Order of application: the named set (``--set``, default ``paper``), then the TOML file
+(``--params FILE.toml``, ``[group] field = value`` tables overriding the set), then every
+``--param group.field=value`` in the order given. The result is validated once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from ..errors import ParameterError
+from ..paper.published import SET_NAMES, named_set
+from ..plant import ServoParams, load_toml, with_overrides
+
+__all__ = ["add_plant_arguments", "params_from_args", "parse_param"]
+
+
+def add_plant_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add ``--set``, ``--params`` and repeated ``--param`` to ``parser``."""
+    group = parser.add_argument_group("plant parameters")
+    group.add_argument("--set", dest="param_set", default="paper", metavar="NAME",
+                       help=f"named parameter set: {', '.join(SET_NAMES)} (default: paper)")
+    group.add_argument("--params", dest="param_file", type=Path, default=None,
+                       metavar="FILE.toml",
+                       help="TOML file of [group] field = value overrides (SI units)")
+    group.add_argument("--param", dest="param_overrides", action="append", default=[],
+                       metavar="GROUP.FIELD=VALUE",
+                       help="override one parameter in SI units, e.g. "
+                            "valve.null_leakage=0 (repeatable)")
+
+
+def parse_param(text: str) -> tuple[str, float]:
+    """Split ``group.field=value`` into the name and a finite float.
+
+    Raises
+    ------
+    ParameterError
+        If the text has no ``=`` or the value is not a finite number.
+    """
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    if not sep or not name:
+        raise ParameterError(f"--param expects GROUP.FIELD=VALUE, got {text!r}")
+    try:
+        number = float(value)
+    except ValueError:
+        raise ParameterError(
+            f"--param {name}: value must be a number in SI units, got {value.strip()!r}"
+        ) from None
+    if not math.isfinite(number):
+        raise ParameterError(f"--param {name}: value must be finite, got {value.strip()!r}")
+    return name, number
+
+
+def params_from_args(args: Any) -> ServoParams:
+    """Build the :class:`ServoParams` selected by the options of :func:`add_plant_arguments`."""
+    params = named_set(args.param_set)
+    if args.param_file is not None:
+        params = load_toml(args.param_file, params)
+    overrides: dict[str, float] = {}
+    for text in args.param_overrides:
+        name, value = parse_param(text)
+        overrides[name] = value
+    if overrides:
+        params = with_overrides(params, overrides)
+    return params
