@@ -1,0 +1,316 @@
+"""Batched closed-loop simulation: many runs differing in gains and plant parameters, compiled
+and parallel across cores (numba ``prange``), with per-run step metrics.
+
+This is what tuning (a differential-evolution population per call) and robustness sweeps call.
+Each run is exactly :func:`fuzzyservo.sim.closed_loop.simulate` (the same compiled single-run
+loops and the same controller and plant functions); traces are kept only on request, and the
+metrics (``fuzzyservo.sim.stepinfo.METRIC_NAMES``) are computed inside the kernel on per-chunk
+buffers that are reused from run to run.
+
+Example
+-------
+>>> res = simulate_batch(ctrl, gains, plant=plant, reference=Step(0.1), duration=5.0)
+>>> res.metric("overshoot")            # one value per row of gains        # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numba
+import numpy as np
+
+from .._typing import ArrayLike, FloatArray, IntArray
+from ..control.base import PackedController
+from ..errors import ParameterError
+from .closed_loop import (
+    LinearPlant,
+    NonlinearPlant,
+    Plant,
+    check_delay,
+    profile,
+    run_linear,
+    run_nonlinear,
+    split_delay,
+    time_grid,
+)
+from .closed_loop import (
+    _noise as make_noise,
+)
+from .references import Reference, sample_reference
+from .result import BatchResult
+from .stepinfo import METRIC_NAMES, N_METRICS, step_metrics_core
+
+__all__ = ["simulate_batch"]
+
+
+def _chunks(n: int) -> int:
+    return max(1, min(n, 4 * numba.get_num_threads()))
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_ref(rbuf: FloatArray, roff: FloatArray, y0: float) -> None:
+    for k in range(roff.shape[0]):
+        rbuf[k] = roff[k] + y0
+
+
+@numba.njit(cache=True, parallel=True)
+def _batch_linear(
+    kind: int, cps: FloatArray, cs0: FloatArray,
+    du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
+    lps: FloatArray, y0s: FloatArray, t: FloatArray, roff: FloatArray, noise: FloatArray,
+    keep: bool, y_tr: FloatArray, u_tr: FloatArray, a_tr: FloatArray,
+    mopts: FloatArray, metrics: FloatArray, bad: IntArray, n_chunks: int,
+) -> None:
+    n = cps.shape[0]
+    n_t = t.shape[0]
+    nx_max = 0
+    d_max = 0
+    for i in range(n):
+        nx_max = max(nx_max, int(lps[i, 0]))
+        d_max = max(d_max, int(lps[i, 1]))
+    for c in numba.prange(n_chunks):
+        lo = c * n // n_chunks
+        hi = (c + 1) * n // n_chunks
+        ybuf = np.empty(n_t)
+        ubuf_tr = np.empty(n_t)
+        abuf = np.empty(n_t)
+        rbuf = np.empty(n_t)
+        x = np.empty(nx_max)
+        xn = np.empty(nx_max)
+        ring = np.empty(d_max + 2)
+        cs = np.empty(cs0.shape[1])
+        no_x = np.empty((0, nx_max))
+        no_noise = np.empty(0)
+        for i in range(lo, hi):
+            nx = int(lps[i, 0])
+            for j in range(nx):
+                x[j] = 0.0
+            for j in range(cs.shape[0]):
+                cs[j] = cs0[i, j]
+            _fill_ref(rbuf, roff, y0s[i])
+            if keep:
+                yv = y_tr[i]
+                uv = u_tr[i]
+                av = a_tr[i]
+            else:
+                yv = ybuf
+                uv = ubuf_tr
+                av = abuf
+            nz = noise[i] if noise.shape[0] > 0 else no_noise
+            bad[i] = run_linear(kind, cps[i], cs, du_rules, du_lims, a_rules, a_lims,
+                                lps[i], rbuf, nz, y0s[i], x[:nx], xn[:nx], ring,
+                                yv, uv, av, no_x[:, :nx])
+            if bad[i] >= 0:
+                for m in range(metrics.shape[1]):
+                    metrics[i, m] = np.nan
+            else:
+                step_metrics_core(t, yv, uv, rbuf, y0s[i], rbuf[n_t - 1], mopts[0], mopts[1],
+                                  mopts[2], mopts[3], metrics[i])
+
+
+@numba.njit(cache=True, parallel=True)
+def _batch_nonlinear(
+    kind: int, cps: FloatArray, cs0: FloatArray,
+    du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
+    pps: FloatArray, x0s: FloatArray, y0s: FloatArray, u0s: FloatArray, ds: IntArray,
+    fs: FloatArray,
+    n_subs: IntArray, ts: float, t: FloatArray, roff: FloatArray, noise: FloatArray,
+    force: FloatArray,
+    keep: bool, y_tr: FloatArray, u_tr: FloatArray, a_tr: FloatArray,
+    mopts: FloatArray, metrics: FloatArray, bad: IntArray, n_chunks: int,
+) -> None:
+    n = cps.shape[0]
+    n_t = t.shape[0]
+    nx = x0s.shape[1]
+    d_max = 0
+    for i in range(n):
+        d_max = max(d_max, ds[i])
+    for c in numba.prange(n_chunks):
+        lo = c * n // n_chunks
+        hi = (c + 1) * n // n_chunks
+        ybuf = np.empty(n_t)
+        ubuf_tr = np.empty(n_t)
+        abuf = np.empty(n_t)
+        rbuf = np.empty(n_t)
+        x = np.empty(nx)
+        p = np.empty(pps.shape[1])
+        work = np.empty((5, nx))
+        ring = np.empty(d_max + 2)
+        cs = np.empty(cs0.shape[1])
+        no_x = np.empty((0, nx))
+        no_noise = np.empty(0)
+        for i in range(lo, hi):
+            for j in range(nx):
+                x[j] = x0s[i, j]
+            for j in range(p.shape[0]):
+                p[j] = pps[i, j]
+            for j in range(cs.shape[0]):
+                cs[j] = cs0[i, j]
+            y0 = y0s[i]
+            _fill_ref(rbuf, roff, y0)
+            if keep:
+                yv = y_tr[i]
+                uv = u_tr[i]
+                av = a_tr[i]
+            else:
+                yv = ybuf
+                uv = ubuf_tr
+                av = abuf
+            nz = noise[i] if noise.shape[0] > 0 else no_noise
+            bad[i] = run_nonlinear(kind, cps[i], cs, du_rules, du_lims, a_rules, a_lims,
+                                   p, ts, ds[i], fs[i], n_subs[i], u0s[i], rbuf, nz, force,
+                                   x, work, ring, yv, uv, av, no_x)
+            if bad[i] >= 0:
+                for m in range(metrics.shape[1]):
+                    metrics[i, m] = np.nan
+            else:
+                step_metrics_core(t, yv, uv, rbuf, y0, rbuf[n_t - 1], mopts[0], mopts[1],
+                                  mopts[2], mopts[3], metrics[i])
+
+
+def _broadcast(n_a: int, n_b: int, what: str) -> int:
+    if n_a == n_b or n_b == 1:
+        return n_a
+    if n_a == 1:
+        return n_b
+    raise ParameterError(f"{what}: {n_a} gain rows but {n_b} plants; give equal counts or one")
+
+
+def simulate_batch(
+    controller: PackedController,
+    gains: ArrayLike | None = None,
+    *,
+    plant: Plant | Sequence[Plant],
+    reference: Reference | ArrayLike,
+    duration: float,
+    delay: float | ArrayLike = 0.0,
+    disturbance: ArrayLike | None = None,
+    noise_std: float = 0.0,
+    rng: np.random.Generator | None = None,
+    keep_traces: bool = False,
+    rise: tuple[float, float] = (0.1, 0.9),
+    settle_band: float = 0.02,
+    settle_band_2: float = 0.05,
+) -> BatchResult:
+    """Run many closed loops in parallel and return their step metrics (and traces).
+
+    Parameters
+    ----------
+    controller : PIDController, FuzzyPIController or SelfTuningFuzzyPIController
+        Template: its ``dt`` (T_s [s]), limits, options and rule tables apply to every run.
+    gains : array (runs, len(controller.gain_names)), optional
+        One row of gains per run, columns ``controller.gain_names`` (``kp, ki, kd, n, b, c``
+        or ``ke, kde, kdu``); None runs the template's own gains.
+    plant : LinearPlant, NonlinearPlant, or a sequence of one of them
+        One plant for all runs, or one per run (all of the same kind).
+    reference : Reference or array
+        Reference offset from each run's start position [m] (one value per sample if array).
+    duration : float
+        Simulated time per run [s].
+    delay : float or array (runs,)
+        Transport delay on the command [s], >= 0.
+    disturbance : array or callable, optional
+        External load force [N] per sample, shared by all runs (nonlinear plant only).
+    noise_std : float
+        Measurement noise standard deviation [m]; each run draws its own from ``rng``.
+    rng : numpy.random.Generator, optional
+        Noise source (required when ``noise_std > 0``).
+    keep_traces : bool
+        Keep y, u and α of every run (memory: 3 × runs × samples floats).
+    rise : (float, float)
+        Rise-time thresholds as fractions of the step [-].
+    settle_band, settle_band_2 : float
+        Settling bands as fractions of the step [-] (``settling_time``, ``settling_time_5``).
+
+    Returns
+    -------
+    BatchResult
+        ``metrics`` (runs, len(METRIC_NAMES)); diverged runs are flagged in ``diverged``
+        with NaN metrics rather than raised, so a search can penalise them.
+
+    Raises
+    ------
+    ParameterError
+        Bad gains, sample time, duration, delay, or plant list.
+    InputError
+        A non-finite reference or disturbance.
+    """
+    ts = float(controller.dt)
+    t = time_grid(duration, ts)
+    roff = sample_reference(reference, t)
+    g = (np.asarray(gains, dtype=np.float64) if gains is not None else None)
+    if g is not None and g.ndim == 1:
+        g = g[None, :]
+    cps = controller.pack_gains(g) if g is not None else controller.pack()[None, :]
+    plants = list(plant) if isinstance(plant, Sequence) else [plant]
+    if not plants:
+        raise ParameterError("need at least one plant")
+    kinds = {type(p) for p in plants}
+    if len(kinds) != 1:
+        raise ParameterError("all plants of a batch must be of one kind (linear or nonlinear)")
+    n = _broadcast(cps.shape[0], len(plants), "simulate_batch")
+    delays = np.broadcast_to(np.asarray(delay, dtype=np.float64), (n,)).copy() \
+        if np.ndim(delay) == 0 or np.size(delay) in (1, n) else None
+    if delays is None:
+        raise ParameterError(f"delay needs one value or one per run ({n}), got {np.size(delay)}")
+    for dv in delays:
+        check_delay(float(dv))
+    if cps.shape[0] == 1 and n > 1:
+        cps = np.repeat(cps, n, axis=0)
+    if len(plants) == 1 and n > 1:
+        plants = plants * n
+    y0s = np.array([p.y0 for p in plants], dtype=np.float64)
+    u0s = np.array([p.u0 if isinstance(p, NonlinearPlant) else 0.0 for p in plants])
+    cs0 = np.vstack([controller.rest_states(cps[i:i + 1], y0s[i], u0s[i]) for i in range(n)]) \
+        if len(set(y0s.tolist())) > 1 or len(set(u0s.tolist())) > 1 \
+        else controller.rest_states(cps, float(y0s[0]), float(u0s[0]))
+    noise = make_noise(noise_std, rng, (n, t.size))
+    if noise.shape[0] == 0:
+        noise = np.empty((0, 0))
+    keep = bool(keep_traces)
+    shape = (n, t.size) if keep else (0, t.size)
+    y_tr, u_tr, a_tr = np.empty(shape), np.empty(shape), np.empty(shape)
+    metrics = np.empty((n, N_METRICS))
+    bad = np.empty(n, dtype=np.int64)
+    if not (0.0 <= rise[0] < rise[1] <= 1.0):
+        raise ParameterError(f"rise thresholds need 0 <= lo < hi <= 1, got {rise!r}")
+    for name, band in (("settle_band", settle_band), ("settle_band_2", settle_band_2)):
+        if not (math.isfinite(band) and 0.0 < band < 1.0):
+            raise ParameterError(f"{name} must be in (0, 1), got {band!r}")
+    mopts = np.array([rise[0], rise[1], settle_band, settle_band_2])
+    tabs = controller.tables()
+    chunks = _chunks(n)
+    if isinstance(plants[0], LinearPlant):
+        if disturbance is not None:
+            raise ParameterError("a load-force disturbance needs the nonlinear plant")
+        rows = []
+        cache: dict[tuple[int, float], FloatArray] = {}
+        for p, dv in zip(plants, delays, strict=True):
+            assert isinstance(p, LinearPlant)
+            key = (id(p), float(dv))
+            if key not in cache:
+                cache[key] = p.discretise(ts, float(dv))
+            rows.append(cache[key])
+        width = max(r.size for r in rows)
+        lps = np.zeros((n, width))
+        for i, row in enumerate(rows):
+            lps[i, :row.size] = row
+        _batch_linear(controller.kind, cps, cs0, *tabs, lps, y0s, t, roff, noise, keep,
+                      y_tr, u_tr, a_tr, mopts, metrics, bad, chunks)
+    else:
+        nl = [p for p in plants if isinstance(p, NonlinearPlant)]
+        force = profile(disturbance, t, "disturbance")
+        pps = np.vstack([p.packed for p in nl])
+        x0s = np.vstack([p.x0 for p in nl])
+        split = [split_delay(float(dv), ts) for dv in delays]
+        ds = np.array([s[0] for s in split], dtype=np.int64)
+        fs = np.array([s[1] for s in split])
+        n_subs = np.array([p.n_sub(ts) for p in nl], dtype=np.int64)
+        _batch_nonlinear(controller.kind, cps, cs0, *tabs, pps, x0s, y0s, u0s, ds, fs, n_subs, ts,
+                         t, roff, noise, force, keep, y_tr, u_tr, a_tr, mopts, metrics, bad,
+                         chunks)
+    return BatchResult(
+        metrics=metrics, metric_names=METRIC_NAMES, diverged=bad >= 0, t=t, r=roff, y0=y0s,
+        y=y_tr if keep else None, u=u_tr if keep else None, alpha=a_tr if keep else None)

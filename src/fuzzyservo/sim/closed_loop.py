@@ -1,0 +1,478 @@
+"""Closed-loop simulation: a discrete controller at sample time T_s driving the servo model.
+
+Timing (row k of every result): at t_k = k T_s the measurement y_k is taken, the controller
+computes u_k from (r_k, y_k), and u_k is held (zero-order hold) over [t_k, t_k + T_s). The hose
+transport delay τ acts on the command, so the plant sees u(t - τ); commands before t_0 equal
+the initial (trim) command. With τ = d T_s + f, 0 <= f < T_s, the plant input over
+[t_k, t_k + T_s) is u_{k-d-1} on [t_k, t_k + f) and u_{k-d} on [t_k + f, t_k + T_s).
+
+Plants:
+
+- :class:`LinearPlant`: continuous state space (A, B, C), discretised exactly by zero-order
+  hold, with the fractional delay handled exactly (Åström & Wittenmark, *Computer-Controlled
+  Systems*, sec. 2.3): x_{k+1} = Φ x_k + Γ_0 u_{k-d} + Γ_1 u_{k-d-1}, Φ = e^{A T_s},
+  Γ_0 = ∫_0^{T_s - f} e^{As} ds B, Γ_1 = e^{A (T_s - f)} ∫_0^f e^{As} ds B.
+- :class:`NonlinearPlant`: the two-chamber model of :mod:`fuzzyservo.plant.nonlinear`,
+  integrated with its RK4 (``rk4_advance_ws``) between samples, the interval split at t_k + f
+  so the delayed command switches exactly; the load force F_ext may follow a profile.
+
+:func:`run_linear` and :func:`run_nonlinear` are the compiled single-run loops; :func:`simulate`
+(one run, with plant states) and :func:`fuzzyservo.sim.batch.simulate_batch` (many runs in
+parallel) both call them, and they call :func:`fuzzyservo.control.controller_step`, the same
+function the controllers' per-step ``step()`` uses.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numba
+import numpy as np
+from scipy.linalg import expm
+
+from .._typing import ArrayLike, FloatArray, IntArray
+from ..control.base import STATE_ALPHA, PackedController, controller_step
+from ..errors import InputError, ParameterError, SimulationDivergedError
+from ..plant.nonlinear import (
+    N_PARAMS,
+    P_FEXT,
+    P_RES,
+    STATE_NAMES,
+    pack,
+    rk4_advance_ws,
+)
+from .references import Reference, sample_reference
+from .result import SimResult
+
+__all__ = [
+    "LinearPlant",
+    "NonlinearPlant",
+    "Plant",
+    "run_linear",
+    "run_nonlinear",
+    "simulate",
+    "time_grid",
+]
+
+_S_X = STATE_NAMES.index("x")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class LinearPlant:
+    """Linear plant dx/dt = A x + B u, y = C x (strictly proper), starting at rest at x = 0.
+
+    Attributes
+    ----------
+    a, b, c : ndarray
+        State matrices: A (n, n) [1/s], B (n,) [state unit per unit command per s],
+        C (n,) [m per state unit].
+    state_names : tuple of str
+        Names of the states (CSV columns).
+    y0 : float
+        Output at rest [m] (the position x = 0 stands for); 0 by default.
+    """
+
+    a: FloatArray  #: state matrix [1/s]
+    b: FloatArray  #: input vector [state unit / s per unit command]
+    c: FloatArray  #: output vector [m per state unit]
+    state_names: tuple[str, ...] = ()  #: state names
+    y0: float = 0.0  #: output at rest [m]
+
+    def __post_init__(self) -> None:
+        a = np.atleast_2d(np.asarray(self.a, dtype=np.float64))
+        b = np.asarray(self.b, dtype=np.float64).reshape(-1)
+        c = np.asarray(self.c, dtype=np.float64).reshape(-1)
+        n = a.shape[0]
+        if a.shape != (n, n) or b.shape != (n,) or c.shape != (n,) or n == 0:
+            raise ParameterError(
+                f"linear plant needs A (n, n), B (n,), C (n,), got {a.shape}, {b.shape}, "
+                f"{c.shape}")
+        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
+            raise ParameterError("linear plant matrices must be finite")
+        object.__setattr__(self, "a", a)
+        object.__setattr__(self, "b", b)
+        object.__setattr__(self, "c", c)
+        if not self.state_names:
+            object.__setattr__(self, "state_names", tuple(f"x{i}" for i in range(n)))
+        elif len(self.state_names) != n:
+            raise ParameterError(f"need {n} state names, got {len(self.state_names)}")
+
+    @classmethod
+    def from_state_space(cls, a: ArrayLike, b: ArrayLike, c: ArrayLike, d: ArrayLike = 0.0,
+                         **kw: Any) -> LinearPlant:
+        """From (A, B, C, D) of a single-input single-output system; D must be 0."""
+        if np.any(np.asarray(d, dtype=np.float64) != 0.0):
+            raise ParameterError(
+                f"the closed loop needs a strictly proper plant (D = 0), got D = {d!r}")
+        return cls(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64),
+                   np.asarray(c, dtype=np.float64), **kw)
+
+    @classmethod
+    def from_servo(cls, servo: Any) -> LinearPlant:
+        """From a :class:`fuzzyservo.plant.LinearServo` (eq. 8), states named after its blocks."""
+        a, b, c, d = servo.state_space()
+        names: tuple[str, ...] = ("spool", "spool_rate", "v", "a", "x")
+        if a.shape[0] == 6:
+            names = ("spool_lag", *names)
+        return cls.from_state_space(a, np.ravel(b), np.ravel(c), d, state_names=names)
+
+    @property
+    def n_states(self) -> int:
+        """Number of states."""
+        return int(self.a.shape[0])
+
+    def discretise(self, ts: float, delay: float) -> FloatArray:
+        """Packed ZOH discretisation with delay: [n, d, Φ (n·n), Γ0 (n), Γ1 (n), C (n)]."""
+        n = self.n_states
+        d = int(math.floor(delay / ts + 1e-9))
+        f = delay - d * ts
+        if f < 1e-9 * ts:
+            f = 0.0
+        phi, _ = _zoh(self.a, self.b, ts)
+        phi_hf, g0 = _zoh(self.a, self.b, ts - f)
+        _, gf = _zoh(self.a, self.b, f)
+        g1 = phi_hf @ gf
+        return np.concatenate([[n, d], phi.ravel(), g0, g1, self.c])
+
+
+def _zoh(a: FloatArray, b: FloatArray, tau: float) -> tuple[FloatArray, FloatArray]:
+    """(e^{A tau}, ∫_0^tau e^{As} ds B) from one matrix exponential (Van Loan)."""
+    n = a.shape[0]
+    m = np.zeros((n + 1, n + 1))
+    m[:n, :n] = a * tau
+    m[:n, n] = b * tau
+    e = expm(m)
+    return e[:n, :n], e[:n, n].copy()
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class NonlinearPlant:
+    """Nonlinear two-chamber servo (:mod:`fuzzyservo.plant.nonlinear`) starting at rest.
+
+    Attributes
+    ----------
+    packed : ndarray
+        Parameter vector from ``fuzzyservo.plant.nonlinear.pack`` (N_PARAMS,).
+    x0 : ndarray
+        Initial state (``STATE_NAMES``), usually the trim equilibrium [SI].
+    u0 : float
+        Command that holds ``x0`` at rest (the trim command) [-].
+    substep : float
+        Upper bound of the RK4 step inside a sample [s].
+    """
+
+    packed: FloatArray  #: packed parameters [SI]
+    x0: FloatArray  #: initial state [SI]
+    u0: float = 0.0  #: trim command [-]
+    substep: float = 1.0e-4  #: RK4 step bound [s]
+    state_names: tuple[str, ...] = STATE_NAMES  #: state names
+
+    def __post_init__(self) -> None:
+        p = np.ascontiguousarray(self.packed, dtype=np.float64)
+        x0 = np.ascontiguousarray(self.x0, dtype=np.float64)
+        if p.shape != (N_PARAMS,) or x0.shape != (len(STATE_NAMES),):
+            raise ParameterError(
+                f"nonlinear plant needs packed ({N_PARAMS},) and x0 ({len(STATE_NAMES)},), got "
+                f"{p.shape} and {x0.shape}")
+        if not (math.isfinite(self.substep) and self.substep > 0.0):
+            raise ParameterError(f"substep must be finite and > 0 s, got {self.substep!r}")
+        if not (np.all(np.isfinite(x0)) and math.isfinite(self.u0)):
+            raise ParameterError("initial state and trim command must be finite")
+        object.__setattr__(self, "packed", p)
+        object.__setattr__(self, "x0", x0)
+
+    @classmethod
+    def from_params(cls, params: Any, position: float | None = None, *,
+                    substep: float = 1.0e-4) -> NonlinearPlant:
+        """From ``ServoParams``, at rest at ``position`` [m] (default mid-stroke), trimmed."""
+        from ..plant.linearize import trim
+
+        pos = 0.5 * params.cylinder.stroke if position is None else float(position)
+        tr = trim(params, pos)
+        return cls(pack(params), np.array(tr.state, dtype=np.float64), float(tr.command),
+                   substep=substep)
+
+    @property
+    def y0(self) -> float:
+        """Output at rest [m]."""
+        return float(self.x0[_S_X])
+
+    def n_sub(self, ts: float) -> int:
+        """RK4 substeps per sample."""
+        return max(1, math.ceil(ts / self.substep - 1e-9))
+
+
+Plant = LinearPlant | NonlinearPlant
+
+
+@numba.njit(cache=True, nogil=True)
+def _delayed(ubuf: FloatArray, w: int, k: int, d: int, u_init: float) -> tuple[float, float]:
+    """Commands u_{k-d} and u_{k-d-1} from the ring buffer whose slot ``w`` holds u_k
+    (``u_init`` before t_0); no integer division in the loop."""
+    n = ubuf.shape[0]
+    j0 = w - d
+    if j0 < 0:
+        j0 += n
+    j1 = j0 - 1
+    if j1 < 0:
+        j1 += n
+    u0 = ubuf[j0] if k - d >= 0 else u_init
+    u1 = ubuf[j1] if k - d - 1 >= 0 else u_init
+    return u0, u1
+
+
+@numba.njit(cache=True, nogil=True)
+def run_linear(
+    kind: int, cp: FloatArray, cs: FloatArray,
+    du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
+    lp: FloatArray, r: FloatArray, noise: FloatArray, y0: float,
+    x: FloatArray, xn: FloatArray, ubuf: FloatArray,
+    y_out: FloatArray, u_out: FloatArray, a_out: FloatArray, x_out: FloatArray,
+) -> int:
+    """One closed loop on a packed linear plant ``lp`` (see ``LinearPlant.discretise``).
+
+    ``cs`` (controller state) and ``x`` (plant state, start value) are updated in place;
+    ``ubuf`` is a ring buffer of at least d + 2 commands; ``noise`` is empty or one value per
+    sample; ``x_out`` is (len(r), n) to keep states or (0, n) not to. Returns the index of
+    the first sample with a non-finite state, or -1.
+    """
+    n = int(lp[0])
+    d = int(lp[1])
+    o_phi = 2
+    o_g0 = o_phi + n * n
+    o_g1 = o_g0 + n
+    o_c = o_g1 + n
+    keep_x = x_out.shape[0] > 0
+    has_noise = noise.shape[0] > 0
+    w = 0
+    for k in range(r.shape[0]):
+        y = y0
+        for i in range(n):
+            y += lp[o_c + i] * x[i]
+        if keep_x:
+            for i in range(n):
+                x_out[k, i] = x[i]
+        if not math.isfinite(y):
+            return k
+        if has_noise:
+            y += noise[k]
+        u = controller_step(kind, cp, cs, r[k], y, du_rules, du_lims, a_rules, a_lims)
+        y_out[k] = y
+        u_out[k] = u
+        a_out[k] = cs[STATE_ALPHA]
+        ubuf[w] = u
+        u0, u1 = _delayed(ubuf, w, k, d, 0.0)
+        w += 1
+        if w == ubuf.shape[0]:
+            w = 0
+        for i in range(n):
+            acc = lp[o_g0 + i] * u0 + lp[o_g1 + i] * u1
+            row = o_phi + i * n
+            for j in range(n):
+                acc += lp[row + j] * x[j]
+            xn[i] = acc
+        for i in range(n):
+            x[i] = xn[i]
+    return -1
+
+
+@numba.njit(cache=True, nogil=True)
+def run_nonlinear(
+    kind: int, cp: FloatArray, cs: FloatArray,
+    du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
+    p: FloatArray, ts: float, d: int, f: float, n_sub: int, u_init: float,
+    r: FloatArray, noise: FloatArray, force: FloatArray,
+    x: FloatArray, work: FloatArray, ubuf: FloatArray,
+    y_out: FloatArray, u_out: FloatArray, a_out: FloatArray, x_out: FloatArray,
+) -> int:
+    """One closed loop on the nonlinear plant with packed parameters ``p`` (a private copy:
+    its external-force entry follows ``force`` when that is not empty).
+
+    Delay τ = d ts + f; ``n_sub`` RK4 substeps per sample (split in proportion at f);
+    ``work`` is a (5, N_STATE) scratch array. Other arguments as :func:`run_linear`.
+    Returns the index of the first sample whose state is non-finite, or -1.
+    """
+    keep_x = x_out.shape[0] > 0
+    has_noise = noise.shape[0] > 0
+    has_force = force.shape[0] > 0
+    res = p[P_RES]
+    n1 = 0
+    if f > 0.0:
+        n1 = max(1, int(round(n_sub * f / ts)))
+        if n1 >= n_sub:
+            n1 = n_sub - 1 if n_sub > 1 else 1
+    n0 = max(1, n_sub - n1)
+    nx = x.shape[0]
+    w = 0
+    for k in range(r.shape[0]):
+        t = k * ts
+        if keep_x:
+            for i in range(nx):
+                x_out[k, i] = x[i]
+        y = x[_S_X]
+        if has_noise:
+            y += noise[k]
+        if res > 0.0:
+            y = res * math.floor(y / res + 0.5)
+        u = controller_step(kind, cp, cs, r[k], y, du_rules, du_lims, a_rules, a_lims)
+        y_out[k] = y
+        u_out[k] = u
+        a_out[k] = cs[STATE_ALPHA]
+        ubuf[w] = u
+        u0, u1 = _delayed(ubuf, w, k, d, u_init)
+        w += 1
+        if w == ubuf.shape[0]:
+            w = 0
+        if has_force:
+            p[P_FEXT] = force[k]
+        ok = True
+        if f > 0.0:
+            ok = rk4_advance_ws(t, x, u1, p, f, n1, work)
+            ok = ok and rk4_advance_ws(t + f, x, u0, p, ts - f, n0, work)
+        else:
+            ok = rk4_advance_ws(t, x, u0, p, ts, n_sub, work)
+        if not ok:
+            return k + 1
+    return -1
+
+
+def time_grid(duration: float, ts: float) -> FloatArray:
+    """Sample times 0, ts, ..., up to ``duration`` [s] (validated: ts > 0, duration >= ts)."""
+    if not (isinstance(ts, int | float) and math.isfinite(ts) and ts > 0.0):
+        raise ParameterError(f"sample time ts must be finite and > 0 s, got {ts!r}")
+    if not (math.isfinite(duration) and duration >= ts):
+        raise ParameterError(
+            f"duration must be finite and at least one sample ({ts!r} s), got {duration!r}")
+    n = int(math.floor(duration / ts + 1e-9)) + 1
+    return np.arange(n, dtype=np.float64) * ts
+
+
+def check_delay(delay: float) -> float:
+    """Validate a transport delay [s] (finite, >= 0)."""
+    if not (math.isfinite(delay) and delay >= 0.0):
+        raise ParameterError(f"delay must be finite and >= 0 s, got {delay!r}")
+    return float(delay)
+
+
+def split_delay(delay: float, ts: float) -> tuple[int, float]:
+    """(d, f) with delay = d ts + f, 0 <= f < ts."""
+    d = int(math.floor(delay / ts + 1e-9))
+    f = delay - d * ts
+    return d, (0.0 if f < 1e-9 * ts else f)
+
+
+def profile(values: ArrayLike | None, t: FloatArray, what: str) -> FloatArray:
+    """A signal given per sample (array of len(t)) or as a callable of t; empty if None."""
+    if values is None:
+        return np.empty(0)
+    arr = np.asarray(values(t) if callable(values) else values, dtype=np.float64)
+    if arr.shape != t.shape:
+        raise InputError(f"{what} needs one value per sample ({t.size}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{what} must be finite, got {arr[~np.isfinite(arr)][0]!r}")
+    return np.ascontiguousarray(arr)
+
+
+def simulate(
+    controller: PackedController,
+    plant: Plant,
+    reference: Reference | ArrayLike,
+    *,
+    duration: float,
+    delay: float = 0.0,
+    disturbance: ArrayLike | None = None,
+    noise_std: float = 0.0,
+    rng: np.random.Generator | None = None,
+) -> SimResult:
+    """Simulate one closed loop; the controller's ``dt`` is the sample time.
+
+    Parameters
+    ----------
+    controller : PIDController, FuzzyPIController or SelfTuningFuzzyPIController
+        The controller (its ``dt`` is T_s [s]).
+    plant : LinearPlant or NonlinearPlant
+        The plant, starting at rest.
+    reference : Reference or array
+        Reference offset from the start position [m]: a reference object or one value per
+        sample.
+    duration : float
+        Simulated time [s], at least one sample.
+    delay : float
+        Transport delay on the command [s], >= 0 (any value, not only multiples of T_s).
+    disturbance : array or callable, optional
+        External load force [N] per sample (nonlinear plant only), or a function of t.
+    noise_std : float
+        Standard deviation of white measurement noise [m], drawn from ``rng``.
+    rng : numpy.random.Generator, optional
+        Source of the noise (required when ``noise_std > 0``).
+
+    Returns
+    -------
+    SimResult
+
+    Raises
+    ------
+    ParameterError
+        Bad sample time, duration, delay or noise level.
+    InputError
+        A non-finite reference or disturbance.
+    SimulationDivergedError
+        The plant state became non-finite; the message names the time and state.
+    """
+    ts = float(controller.dt)
+    t = time_grid(duration, ts)
+    delay = check_delay(delay)
+    r = sample_reference(reference, t) + plant.y0
+    noise = _noise(noise_std, rng, (t.size,))
+    cp = controller.pack()
+    cs = controller.rest_states(cp[None, :], plant.y0, _u_init(plant))[0]
+    tabs = controller.tables()
+    n = t.size
+    y, u, a = np.empty(n), np.empty(n), np.empty(n)
+    if isinstance(plant, LinearPlant):
+        if disturbance is not None:
+            raise ParameterError("a load-force disturbance needs the nonlinear plant")
+        lp = plant.discretise(ts, delay)
+        nx = plant.n_states
+        x = np.zeros(nx)
+        xs = np.empty((n, nx))
+        ubuf = np.zeros(int(lp[1]) + 2)
+        bad = run_linear(controller.kind, cp, cs, *tabs, lp, r, noise, plant.y0,
+                         x, np.empty(nx), ubuf, y, u, a, xs)
+    else:
+        force = profile(disturbance, t, "disturbance")
+        d, f = split_delay(delay, ts)
+        x = plant.x0.copy()
+        xs = np.empty((n, x.size))
+        bad = run_nonlinear(controller.kind, cp, cs, *tabs, plant.packed.copy(), ts, d, f,
+                            plant.n_sub(ts), plant.u0, r, noise, force, x,
+                            np.empty((5, x.size)), np.zeros(d + 2), y, u, a, xs)
+    if bad >= 0:
+        raise_diverged(bad * ts, x, plant.state_names)
+    info: dict[str, Any] = {"controller": controller, "plant": plant, "noise_std": noise_std}
+    return SimResult(t=t, r=r, y=y, u=u, alpha=a, x=xs, state_names=plant.state_names,
+                     ts=ts, delay=delay, info=info)
+
+
+def _u_init(plant: Plant) -> float:
+    return plant.u0 if isinstance(plant, NonlinearPlant) else 0.0
+
+
+def _noise(std: float, rng: np.random.Generator | None, shape: tuple[int, ...]) -> FloatArray:
+    if not (math.isfinite(std) and std >= 0.0):
+        raise ParameterError(f"noise_std must be finite and >= 0 m, got {std!r}")
+    if std == 0.0:
+        return np.empty((0,) * len(shape))
+    if rng is None:
+        raise ParameterError("measurement noise needs a numpy.random.Generator (rng=...)")
+    return rng.normal(0.0, std, size=shape)
+
+
+def raise_diverged(t: float, x: FloatArray, names: tuple[str, ...]) -> None:
+    """Raise :class:`SimulationDivergedError` naming the time and the state."""
+    state = ", ".join(f"{n}={float(v):.6g}" for n, v in zip(names, x, strict=False))
+    raise SimulationDivergedError(f"closed loop diverged at t = {t:.6g} s: state {state}")
+
+

@@ -1,0 +1,251 @@
+"""Reference signals for the closed loop, as offsets [m] from the start position.
+
+Each reference is a frozen dataclass with ``values(t) -> r`` (t [s] -> r [m], numpy arrays);
+the simulator adds the plant's initial output y(0), so ``Step(0.1)`` moves the piston 0.1 m
+from wherever it starts (0 on the linear plant, the start position on the nonlinear plant).
+:func:`parse_reference` reads the CLI form (``step:0.1``, ``ramp:0.05``, ...).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from .._typing import ArrayLike, FloatArray
+from ..errors import InputError
+
+__all__ = [
+    "MultiStep",
+    "Ramp",
+    "Reference",
+    "Sine",
+    "Step",
+    "Trapezoid",
+    "UserReference",
+    "parse_reference",
+    "sample_reference",
+]
+
+
+def _finite(name: str, value: float) -> float:
+    v = float(value)
+    if not math.isfinite(v):
+        raise InputError(f"reference {name} must be finite, got {value!r}")
+    return v
+
+
+class Reference(Protocol):
+    """A reference signal r(t) [m], relative to the start position."""
+
+    def values(self, t: FloatArray) -> FloatArray:
+        """Return r [m] at the times ``t`` [s]."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class Step:
+    """Step of ``amplitude`` [m] at ``time`` [s] (default 0)."""
+
+    amplitude: float  #: step height [m]
+    time: float = 0.0  #: step instant [s]
+
+    def __post_init__(self) -> None:
+        _finite("step amplitude", self.amplitude)
+        _finite("step time", self.time)
+
+    def values(self, t: FloatArray) -> FloatArray:
+        """r(t) [m]."""
+        return np.where(np.asarray(t) >= self.time, self.amplitude, 0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class MultiStep:
+    """Piecewise-constant reference: ``levels[i]`` [m] from ``times[i]`` [s] on, 0 before."""
+
+    times: tuple[float, ...]  #: switching instants, increasing [s]
+    levels: tuple[float, ...]  #: values from each instant on [m]
+
+    def __post_init__(self) -> None:
+        if len(self.times) != len(self.levels) or not self.times:
+            raise InputError(
+                f"multistep needs as many times as levels (>= 1), got {len(self.times)} "
+                f"and {len(self.levels)}")
+        for x in self.times:
+            _finite("multistep time", x)
+        for x in self.levels:
+            _finite("multistep level", x)
+        if any(b <= a for a, b in zip(self.times, self.times[1:], strict=False)):
+            raise InputError(f"multistep times must increase, got {self.times!r}")
+
+    def values(self, t: FloatArray) -> FloatArray:
+        """r(t) [m]."""
+        idx = np.searchsorted(np.asarray(self.times), np.asarray(t), side="right") - 1
+        levels = np.concatenate([[0.0], np.asarray(self.levels, dtype=np.float64)])
+        return levels[idx + 1]
+
+
+@dataclass(frozen=True, slots=True)
+class Ramp:
+    """Ramp of ``slope`` [m/s] from ``time`` [s], held at ``final`` [m] if given."""
+
+    slope: float  #: ramp rate [m/s]
+    time: float = 0.0  #: start of the ramp [s]
+    final: float | None = None  #: value where the ramp stops [m]; None: never
+
+    def __post_init__(self) -> None:
+        _finite("ramp slope", self.slope)
+        _finite("ramp time", self.time)
+        if self.final is not None:
+            _finite("ramp final value", self.final)
+
+    def values(self, t: FloatArray) -> FloatArray:
+        """r(t) [m]."""
+        r = self.slope * np.maximum(np.asarray(t, dtype=np.float64) - self.time, 0.0)
+        if self.final is not None:
+            r = np.minimum(r, self.final) if self.slope >= 0 else np.maximum(r, self.final)
+        return r
+
+
+@dataclass(frozen=True, slots=True)
+class Sine:
+    """``amplitude`` sin(2π ``frequency`` t) [m]."""
+
+    amplitude: float  #: amplitude [m]
+    frequency: float  #: frequency [Hz]
+
+    def __post_init__(self) -> None:
+        _finite("sine amplitude", self.amplitude)
+        _finite("sine frequency", self.frequency)
+
+    def values(self, t: FloatArray) -> FloatArray:
+        """r(t) [m]."""
+        return self.amplitude * np.sin(2.0 * np.pi * self.frequency * np.asarray(t))
+
+
+@dataclass(frozen=True, slots=True)
+class Trapezoid:
+    """Trapezoidal motion profile: move ``distance`` [m] from ``time`` [s] with speed at most
+    ``v_max`` [m/s] and acceleration ``a_max`` [m/s²] (triangular when too short to cruise)."""
+
+    distance: float  #: travel [m]
+    v_max: float  #: cruise speed [m/s], > 0
+    a_max: float  #: acceleration and deceleration [m/s²], > 0
+    time: float = 0.0  #: start of the move [s]
+
+    def __post_init__(self) -> None:
+        _finite("trapezoid distance", self.distance)
+        _finite("trapezoid start time", self.time)
+        for name, v in (("v_max", self.v_max), ("a_max", self.a_max)):
+            if not (_finite(f"trapezoid {name}", v) > 0.0):
+                raise InputError(f"trapezoid {name} must be > 0, got {v!r}")
+
+    def values(self, t: FloatArray) -> FloatArray:
+        """r(t) [m]."""
+        d = abs(self.distance)
+        sign = 1.0 if self.distance >= 0 else -1.0
+        v = min(self.v_max, math.sqrt(d * self.a_max))  # peak speed reached
+        ta = v / self.a_max  # acceleration time
+        tc = (d - v * ta) / v if v > 0 else 0.0  # cruise time
+        tau = np.clip(np.asarray(t, dtype=np.float64) - self.time, 0.0, None)
+        acc = 0.5 * self.a_max * tau**2
+        cruise = 0.5 * v * ta + v * (tau - ta)
+        td = tau - ta - tc
+        dec = 0.5 * v * ta + v * tc + v * td - 0.5 * self.a_max * td**2
+        r = np.where(tau < ta, acc, np.where(tau < ta + tc, cruise,
+                                             np.where(td < ta, dec, d)))
+        return sign * r
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class UserReference:
+    """A user's samples ``(times [s], values [m])``, linearly interpolated, held at both ends."""
+
+    times: FloatArray  #: sample times, increasing [s]
+    samples: FloatArray  #: reference values [m]
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.times, dtype=np.float64)
+        v = np.asarray(self.samples, dtype=np.float64)
+        if t.ndim != 1 or t.shape != v.shape or t.size == 0:
+            raise InputError(
+                f"user reference needs 1-D times and values of equal length, got {t.shape} "
+                f"and {v.shape}")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
+            bad = v[~np.isfinite(v)] if not np.all(np.isfinite(v)) else t[~np.isfinite(t)]
+            raise InputError(f"user reference must be finite, got {bad[0]!r}")
+        if np.any(np.diff(t) <= 0):
+            raise InputError("user reference times must increase strictly")
+        object.__setattr__(self, "times", t)
+        object.__setattr__(self, "samples", v)
+
+    def values(self, t: FloatArray) -> FloatArray:
+        """r(t) [m]."""
+        return np.interp(np.asarray(t, dtype=np.float64), self.times, self.samples)
+
+
+def _numbers(spec: str, body: str, n_min: int, n_max: int) -> list[float]:
+    parts = body.split(":") if body else []
+    if not n_min <= len(parts) <= n_max:
+        raise InputError(f"reference {spec!r}: expected {n_min}..{n_max} numbers, "
+                         f"got {len(parts)}")
+    out: list[float] = []
+    for p in parts:
+        try:
+            out.append(float(p))
+        except ValueError:
+            raise InputError(f"reference {spec!r}: {p!r} is not a number") from None
+    return out
+
+
+def parse_reference(spec: str) -> Reference:
+    """Parse the CLI form of a reference.
+
+    ``step:A[:T]``, ``multistep:T1=A1,T2=A2,...``, ``ramp:SLOPE[:T[:FINAL]]``,
+    ``sine:A:F``, ``trapezoid:DIST:VMAX:AMAX[:T]`` (m, s, m/s, m/s², Hz).
+    """
+    kind, _, body = spec.partition(":")
+    kind = kind.strip().lower()
+    if kind == "step":
+        a = _numbers(spec, body, 1, 2)
+        return Step(*a)
+    if kind == "multistep":
+        times: list[float] = []
+        levels: list[float] = []
+        for item in body.split(","):
+            ts, eq, lv = item.partition("=")
+            if not eq:
+                raise InputError(f"reference {spec!r}: expected TIME=LEVEL, got {item!r}")
+            times.append(_numbers(spec, ts, 1, 1)[0])
+            levels.append(_numbers(spec, lv, 1, 1)[0])
+        return MultiStep(tuple(times), tuple(levels))
+    if kind == "ramp":
+        a = _numbers(spec, body, 1, 3)
+        return Ramp(a[0], a[1] if len(a) > 1 else 0.0, a[2] if len(a) > 2 else None)
+    if kind == "sine":
+        a = _numbers(spec, body, 2, 2)
+        return Sine(a[0], a[1])
+    if kind == "trapezoid":
+        a = _numbers(spec, body, 3, 4)
+        return Trapezoid(*a)
+    raise InputError(
+        f"unknown reference {spec!r}; allowed: step:A[:T], multistep:T1=A1,..., "
+        f"ramp:SLOPE[:T[:FINAL]], sine:A:F, trapezoid:DIST:VMAX:AMAX[:T]")
+
+
+def sample_reference(reference: Reference | ArrayLike, t: FloatArray) -> FloatArray:
+    """``reference`` sampled at ``t`` [s]; an array is taken as already sampled (same length)."""
+    if hasattr(reference, "values"):
+        r = np.asarray(reference.values(t), dtype=np.float64)
+    else:
+        r = np.asarray(reference, dtype=np.float64)
+        if r.shape != t.shape:
+            raise InputError(
+                f"a sampled reference needs one value per sample ({t.size}), got {r.shape}")
+    if not np.all(np.isfinite(r)):
+        raise InputError(f"reference must be finite, got {r[~np.isfinite(r)][0]!r}")
+    return np.ascontiguousarray(r)
+
+
