@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import InputError, ParameterError
 from ..sim.open_loop import simulate_open_loop
+from ._closed_loop import add_closed_loop_arguments, run_closed_loop
 from ._plantargs import add_plant_arguments, params_from_args
 
 __all__ = ["OPEN_LOOP_COLUMNS", "register", "run", "run_open_loop"]
@@ -43,7 +44,7 @@ def register(subparsers: Any) -> None:
                         help="open-loop valve command, fraction of rated input in [-1, 1]")
     parser.add_argument("--duration", type=float, default=2.0, metavar="S",
                         help="simulated time [s] (default 2)")
-    parser.add_argument("--dt", type=float, default=1e-3, metavar="S",
+    parser.add_argument("--dt", "--ts", type=float, default=1e-3, metavar="S",
                         help="sample time of the command and of the CSV [s] (default 0.001)")
     parser.add_argument("--start", type=float, default=0.5, metavar="FRACTION",
                         help="initial position as a fraction of the stroke (default 0.5)")
@@ -52,6 +53,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--out", type=Path, required=True, metavar="FILE.csv",
                         help="CSV file to write")
     add_plant_arguments(parser)
+    add_closed_loop_arguments(parser)
     parser.set_defaults(handler=run)
 
 
@@ -59,8 +61,7 @@ def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo simulate``: dispatch on ``--open-loop``."""
     if args.open_loop:
         return run_open_loop(args)
-    raise InputError("closed-loop simulation is not available in this build; use --open-loop "
-                     "with --command")
+    return run_closed_loop(args)
 
 
 def run_open_loop(args: argparse.Namespace) -> int:
