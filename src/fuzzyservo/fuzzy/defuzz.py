@@ -62,7 +62,17 @@ def pl_tables(output: LinguisticVariable) -> tuple[FloatArray, FloatArray, Float
         if verts is None:
             raise ParameterError("pl_tables needs piecewise-linear output terms")
         pts.update(x for x, _ in verts if lo < x < hi)
-    bp = np.array(sorted(pts), dtype=np.float64)
+    # merge breakpoints closer than rounding (e.g. -1 + 3 * (2/3) and 1): an interval that
+    # thin has no room for a line of its own
+    tol = 1e-12 * (hi - lo)
+    merged: list[float] = []
+    for x in sorted(pts):
+        if merged and x - merged[-1] <= tol:
+            merged[-1] = hi if x == hi else merged[-1]
+            continue
+        merged.append(x)
+    merged[0] = lo
+    bp = np.array(merged, dtype=np.float64)
     k = bp.shape[0] - 1
     n = len(output.terms)
     slope = np.empty((k, n))
@@ -251,15 +261,19 @@ def _pl_point(w: FloatArray, rule_out: IntArray, bp: FloatArray, slope: FloatArr
             pmom += 0.5 * (sv[s] * sv[s] - su[s] * su[s])
     if plen > 0.0:
         return pmom / plen
+    # no plateau: the mean of the distinct points where the maximum is reached
     cnt = 0
     tot = 0.0
+    last = -np.inf
     for s in range(n_seg):
-        if gu[s] >= gmax - tol:
+        if gu[s] >= gmax - tol and su[s] > last:
             cnt += 1
             tot += su[s]
-        if gv[s] >= gmax - tol:
+            last = su[s]
+        if gv[s] >= gmax - tol and sv[s] > last:
             cnt += 1
             tot += sv[s]
+            last = sv[s]
     return tot / cnt
 
 
@@ -353,6 +367,13 @@ def centroid_sampled(universe: FloatArray, mu: FloatArray) -> FloatArray:
 
 
 def _quad_centroid(system: MamdaniSystem, w: FloatArray) -> float:
+    """Centroid of a smooth (Gaussian / bell) aggregate by adaptive quadrature.
+
+    The aggregate is smooth except where the active piece changes (which set is largest,
+    whether it is clipped, whether a bounded sum saturates). Those points are located on a
+    2001-point scan and refined by bisection to rounding, and ``quad`` integrates each smooth
+    piece to the spec's ``quad_tol``.
+    """
     out = system.output
     lo, hi = out.universe
     spec = system.spec
@@ -361,17 +382,53 @@ def _quad_centroid(system: MamdaniSystem, w: FloatArray) -> float:
     active = [(float(w[r]), mfs[int(rule_out[r])]) for r in range(w.shape[0]) if w[r] > 0.0]
     if not active:
         return math.nan
+    hs = np.array([h for h, _ in active])
+    clip = spec.implication == "min"
 
-    def g(y: float) -> float:
-        vals = [min(h, float(mf(y))) if spec.implication == "min" else h * float(mf(y))
-                for h, mf in active]
-        return max(vals) if spec.aggregation == "max" else min(1.0, sum(vals))
+    def parts(y: FloatArray) -> tuple[FloatArray, FloatArray]:
+        f = np.stack([mf(y) for _, mf in active])  # (n_active, len(y))
+        return (np.minimum(hs[:, None], f) if clip else hs[:, None] * f), f
 
-    pts = sorted({min(max(mf.centre, lo), hi) for _, mf in active})
+    def g(y: FloatArray) -> FloatArray:
+        imp, _ = parts(y)
+        if spec.aggregation == "max":
+            return np.max(imp, axis=0)
+        return np.minimum(1.0, np.sum(imp, axis=0))
+
+    def piece(y: FloatArray) -> IntArray:
+        imp, f = parts(y)
+        code = (f >= hs[:, None]).astype(np.int64) if clip else np.zeros(imp.shape, np.int64)
+        key = np.sum(code * (2 ** np.arange(len(active)))[:, None], axis=0)
+        if spec.aggregation == "max":
+            return np.asarray(key * (len(active) + 1) + np.argmax(imp, axis=0))
+        return np.asarray(key * 2 + (np.sum(imp, axis=0) >= 1.0))
+
+    grid = np.linspace(lo, hi, 2001)
+    ids = piece(grid)
+    cuts = [lo]
+    for k in np.flatnonzero(ids[1:] != ids[:-1]):
+        a, b = float(grid[k]), float(grid[k + 1])
+        ia = ids[k]
+        for _ in range(60):
+            mid = 0.5 * (a + b)
+            if mid in (a, b):
+                break
+            if piece(np.array([mid]))[0] == ia:
+                a = mid
+            else:
+                b = mid
+        cuts.append(0.5 * (a + b))
+    cuts.append(hi)
     tol = spec.quad_tol
-    area = integrate.quad(g, lo, hi, points=pts, epsabs=tol, epsrel=tol, limit=200)[0]
-    mom = integrate.quad(lambda y: y * g(y), lo, hi, points=pts, epsabs=tol, epsrel=tol,
-                         limit=200)[0]
+    area = 0.0
+    mom = 0.0
+    for a, b in zip(cuts, cuts[1:], strict=False):
+        if b <= a:
+            continue
+        area += integrate.quad(lambda y: float(g(np.array([y]))[0]), a, b,
+                               epsabs=tol, epsrel=tol, limit=200)[0]
+        mom += integrate.quad(lambda y: y * float(g(np.array([y]))[0]), a, b,
+                              epsabs=tol, epsrel=tol, limit=200)[0]
     return mom / area if area > 0.0 else math.nan
 
 

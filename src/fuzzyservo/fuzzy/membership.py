@@ -57,7 +57,7 @@ def _check_ordered(kind: str, names: str, *values: float) -> None:
 def _rise(x: FloatArray, a: float, b: float) -> FloatArray:
     """0 below a, 1 above b, linear between (a step at a when a == b); NaN stays NaN."""
     if b > a:
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):
             return np.clip((x - a) / (b - a), 0.0, 1.0)
     return np.where(np.isnan(x), np.nan, np.where(x >= a, 1.0, 0.0))
 
@@ -65,7 +65,7 @@ def _rise(x: FloatArray, a: float, b: float) -> FloatArray:
 def _fall(x: FloatArray, a: float, b: float) -> FloatArray:
     """1 below a, 0 above b, linear between (a step at b when a == b); NaN stays NaN."""
     if b > a:
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):
             return np.clip((b - x) / (b - a), 0.0, 1.0)
     return np.where(np.isnan(x), np.nan, np.where(x <= b, 1.0, 0.0))
 
@@ -168,8 +168,9 @@ def gauss(x: ArrayLike, mean: float, sigma: float) -> FloatArray:
     _finite(mean=mean, sigma=sigma)
     if sigma <= 0.0:
         raise ParameterError(f"Gaussian sigma must be > 0, got {sigma!r}")
-    z = (np.asarray(x, dtype=np.float64) - mean) / sigma
-    return np.exp(-0.5 * z * z)
+    with np.errstate(over="ignore"):
+        z = (np.asarray(x, dtype=np.float64) - mean) / sigma
+        return np.exp(-0.5 * z * z)
 
 
 def gbell(x: ArrayLike, a: float, b: float, c: float) -> FloatArray:
@@ -194,8 +195,8 @@ def gbell(x: ArrayLike, a: float, b: float, c: float) -> FloatArray:
     _finite(a=a, b=b, c=c)
     if a <= 0.0 or b <= 0.0:
         raise ParameterError(f"bell needs a > 0 and b > 0, got a={a!r}, b={b!r}")
-    z = np.abs((np.asarray(x, dtype=np.float64) - c) / a)
     with np.errstate(over="ignore"):
+        z = np.abs((np.asarray(x, dtype=np.float64) - c) / a)
         return 1.0 / (1.0 + z ** (2.0 * b))
 
 
