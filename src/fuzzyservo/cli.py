@@ -20,6 +20,8 @@ COMMANDS: tuple[str, ...] = (
     "metrics",
     "linearize",
     "simulate",
+    "surface",
+    "reproduce",
 )
 
 

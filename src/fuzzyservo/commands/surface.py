@@ -1,0 +1,144 @@
+"""``fuzzyservo surface du|alpha``: evaluate the paper's fuzzy systems on points or a grid.
+
+Input CSV (``--at``): a header naming at least the columns ``e`` and ``de``, one point per
+row, lines starting with ``#`` ignored. Output CSV (``--out``): header ``e,de,value``, values
+written with 17 significant digits (round-trip exact). ``--grid N`` evaluates an N x N grid
+over [-1, 1]^2 instead. ``--plot`` writes the control surface and ``--mf-plot`` the
+membership functions as PNG.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..errors import InputError
+from ..fuzzy import MamdaniSystem
+from ..paper import alpha_system, du_system
+from ..plots.figures import membership_data, render_memberships, render_surface, surface_data
+
+__all__ = ["read_points_csv", "register", "run", "write_values_csv"]
+
+SYSTEMS = {"du": du_system, "alpha": alpha_system}
+MAX_GRID = 4000
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``surface`` subcommand to ``subparsers`` and set its handler."""
+    parser = subparsers.add_parser(
+        "surface",
+        help="evaluate the paper's du or alpha fuzzy system on points or a grid",
+        description=(
+            "Evaluate the paper's fuzzy system (du: Fig. 3a, alpha: Fig. 3b; exact centroid) "
+            "at the points of a CSV with columns e,de (--at) or on an N x N grid over "
+            "[-1, 1]^2 (--grid), writing a CSV with columns e,de,value (--out); optionally "
+            "plot the surface (--plot) and the membership functions (--mf-plot) as PNG."
+        ),
+    )
+    parser.add_argument("system", choices=sorted(SYSTEMS), help="which system of Fig. 3")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--at", type=Path, metavar="POINTS.csv",
+                       help="CSV with header e,de: the points to evaluate")
+    where.add_argument("--grid", type=int, metavar="N",
+                       help=f"evaluate an N x N grid over [-1, 1]^2 (2 <= N <= {MAX_GRID})")
+    parser.add_argument("--out", type=Path, metavar="OUT.csv", help="CSV to write: e,de,value")
+    parser.add_argument("--plot", type=Path, metavar="SURFACE.png",
+                        help="PNG of the control surface (on the --grid, default 81 x 81)")
+    parser.add_argument("--mf-plot", type=Path, metavar="MF.png",
+                        help="PNG of the membership functions")
+    parser.set_defaults(handler=run)
+
+
+def read_points_csv(path: Path) -> tuple[FloatArray, FloatArray]:
+    """Read the ``e`` and ``de`` columns of a CSV as finite float arrays.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, lacks a header with ``e`` and ``de``, or a value is not a
+        finite number (the message names the line and column).
+    """
+    try:
+        with path.open(newline="", encoding="utf-8") as fh:
+            rows = [(n, row) for n, row in enumerate(csv.reader(fh), start=1)
+                    if row and not row[0].lstrip().startswith("#")]
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise InputError(f"cannot read points CSV {str(path)!r}: {reason}") from exc
+    if not rows:
+        raise InputError(f"points CSV {str(path)!r} is empty: need a header with e,de")
+    header = [h.strip() for h in rows[0][1]]
+    missing = [c for c in ("e", "de") if c not in header]
+    if missing:
+        raise InputError(
+            f"points CSV {str(path)!r} lacks column(s) {', '.join(missing)}: the header must "
+            f"name e and de, got {', '.join(header) or 'nothing'}"
+        )
+    ie, ide = header.index("e"), header.index("de")
+    e = np.empty(len(rows) - 1)
+    de = np.empty(len(rows) - 1)
+    for k, (lineno, row) in enumerate(rows[1:]):
+        for col, idx, dest in (("e", ie, e), ("de", ide, de)):
+            text = row[idx].strip() if idx < len(row) else ""
+            try:
+                value = float(text)
+            except ValueError:
+                value = math.nan
+                text = text or "(empty)"
+            if not math.isfinite(value):
+                raise InputError(
+                    f"points CSV {str(path)!r} line {lineno} column {col}: {text!r} is not a "
+                    "finite number"
+                )
+            dest[k] = value
+    return e, de
+
+
+def write_values_csv(path: Path, e: FloatArray, de: FloatArray, value: FloatArray) -> None:
+    """Write ``e,de,value`` rows with round-trip precision."""
+    try:
+        with path.open("w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow(["e", "de", "value"])
+            for row in zip(e.tolist(), de.tolist(), value.tolist(), strict=True):
+                w.writerow([repr(x) for x in row])
+    except OSError as exc:
+        raise InputError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from exc
+
+
+def _save(fig: Any, path: Path) -> None:
+    try:
+        fig.savefig(path, dpi=120)
+    except OSError as exc:
+        raise InputError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from exc
+
+
+def run(args: argparse.Namespace) -> int:
+    """Handler of ``fuzzyservo surface``."""
+    system: MamdaniSystem = SYSTEMS[args.system]()
+    if args.grid is not None and not 2 <= args.grid <= MAX_GRID:
+        raise InputError(f"--grid must be between 2 and {MAX_GRID}, got {args.grid}")
+    if args.out is None and args.plot is None and args.mf_plot is None:
+        raise InputError("nothing to do: give --out (with --at or --grid), --plot or --mf-plot")
+    if args.out is not None:
+        if args.at is None and args.grid is None:
+            raise InputError("--out needs the points: give --at POINTS.csv or --grid N")
+        if args.at is not None:
+            e, de = read_points_csv(args.at)
+        else:
+            g = np.linspace(-1.0, 1.0, args.grid)
+            ee, dd = np.meshgrid(g, g)
+            e, de = ee.ravel(), dd.ravel()
+        write_values_csv(args.out, e, de, system.evaluate(e, de))
+    if args.plot is not None:
+        n = args.grid if args.grid is not None else 81
+        _save(render_surface(surface_data(system, n, f"{args.system}(e, Δe)")), args.plot)
+    if args.mf_plot is not None:
+        _save(render_memberships(membership_data(system), f"{args.system} system"), args.mf_plot)
+    return 0
