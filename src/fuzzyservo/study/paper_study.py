@@ -1,0 +1,301 @@
+"""The paper's study (Figs. 4-8 and its claims), run on the linear and the nonlinear plant.
+
+The study computes first and renders second: :func:`run_plant_study` simulates every experiment
+of one plant and returns a :class:`PlantStudy` record (traces, metrics, sweeps, claims);
+``fuzzyservo.study.outputs`` writes figures, CSV, JSON and the HTML report from it.
+
+Experiments per plant (all from rest at mid-stroke, a step of ``step`` metres, gains fixed):
+
+- nominal step responses of PID (1.2, 1, 0.75), PID (0.8, 0.55, 0.5), the PIDs tuned to the
+  paper's constraint (1-DOF and 2-DOF), the fuzzy PI and the self-tuning fuzzy PI (Figs. 4-7);
+- the self-tuning fuzzy PI with the hose delay (Fig. 8) and a sweep of the delay for every
+  controller, up to where it fails (no 2 % settling within the run, or divergence);
+- every controller on changed plants (load mass x0.5 and x2, oil bulk modulus x0.5, supply
+  pressure -500 kPa, and on the nonlinear plant a +-500 kPa supply ripple), gains fixed (C8).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..analysis.step_metrics import step_metrics
+from ..control import FuzzyPIController, PIDController, SelfTuningFuzzyPIController
+from ..errors import ParameterError
+from ..paper import alpha_system, du_system
+from ..plant import LinearServo, ServoParams, linearize, with_overrides
+from ..sim import LinearPlant, NonlinearPlant, SimResult, simulate
+from ..sim.batch import simulate_batch
+from ..sim.references import Step
+from .claims import Claim, evaluate_claims
+
+__all__ = [
+    "CONTROLLER_KEYS",
+    "PAPER_PIDS",
+    "ControllerCase",
+    "PlantStudy",
+    "StudyConfig",
+    "build_controller",
+    "build_plant",
+    "run_plant_study",
+    "study_cases",
+]
+
+#: The study's controllers, in legend order.
+CONTROLLER_KEYS: tuple[str, ...] = (
+    "pid_paper_1", "pid_paper_2", "pid_tuned", "pid2_tuned", "fpi", "stfpi")
+
+#: The paper's two PIDs (Sec. IV), parallel form, gains (K_P, K_I, K_D).
+PAPER_PIDS: dict[str, tuple[float, float, float]] = {
+    "pid_paper_1": (1.2, 1.0, 0.75),
+    "pid_paper_2": (0.8, 0.55, 0.5),
+}
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StudyConfig:
+    """Settings of the study; each is recorded in the report.
+
+    Parameters
+    ----------
+    params : ServoParams
+        The plant parameter set.
+    set_name : str
+        Its name (for the report).
+    step : float
+        Reference step from mid-stroke [m].
+    duration : float
+        Length of each run [s].
+    ts : float
+        Controller sample time [s].
+    hose_delay : float
+        The paper's hose delay for Fig. 8 [s].
+    delay_sweep : tuple of float
+        Delays of the sweep [s].
+    pid_filter : float
+        Derivative filter coefficient N of the paper's PIDs [1/s] (Simulink's default, 100).
+    """
+
+    params: ServoParams
+    set_name: str = "paper"
+    step: float = 0.1
+    duration: float = 10.0
+    ts: float = 0.001
+    hose_delay: float = 0.006
+    delay_sweep: tuple[float, ...] = (0.0, 0.006, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.08,
+                                      0.1, 0.125, 0.15, 0.2, 0.25, 0.3)
+    pid_filter: float = 100.0
+
+    def __post_init__(self) -> None:
+        for name in ("step", "duration", "ts"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ParameterError(f"StudyConfig.{name} must be > 0, got {v!r}")
+        if self.duration < 10 * self.ts:
+            raise ParameterError(
+                f"StudyConfig.duration must cover at least 10 samples, got {self.duration!r} s")
+
+
+@dataclass(frozen=True, slots=True)
+class ControllerCase:
+    """A controller of the study: key, legend label, kind (pid|fpi|stfpi) and gains."""
+
+    key: str
+    label: str
+    kind: str
+    gains: dict[str, float]
+
+
+def study_cases(tuned: Mapping[str, Mapping[str, float]], pid_filter: float = 100.0
+                ) -> list[ControllerCase]:
+    """The study's controllers from the tuned gains.
+
+    ``tuned`` maps "pid", "pid2", "fpi" and "stfpi" to their gains (kp, ki, kd[, b, c, n] or
+    ke, kde, kdu).
+    """
+    cases = []
+    for key, (kp, ki, kd) in PAPER_PIDS.items():
+        cases.append(ControllerCase(key, f"PID ({kp:g}, {ki:g}, {kd:g})", "pid",
+                                    {"kp": kp, "ki": ki, "kd": kd, "n": pid_filter,
+                                     "b": 1.0, "c": 1.0}))
+    for name, key, label in (("pid", "pid_tuned", "PID tuned, 1-DOF"),
+                             ("pid2", "pid2_tuned", "PID tuned, 2-DOF"),
+                             ("fpi", "fpi", "fuzzy PI"),
+                             ("stfpi", "stfpi", "self-tuning fuzzy PI")):
+        if name not in tuned:
+            raise ParameterError(f"tuned gains for {name!r} are missing")
+        g = {k: float(v) for k, v in tuned[name].items()}
+        kind = "pid" if name.startswith("pid") else name
+        if kind == "pid":
+            g.setdefault("n", pid_filter)
+            g.setdefault("b", 1.0)
+            g.setdefault("c", 1.0)
+        cases.append(ControllerCase(key, label, kind, g))
+    return cases
+
+
+def build_controller(case: ControllerCase, ts: float) -> Any:
+    """The controller object of a case at sample time ``ts`` [s]."""
+    if case.kind == "pid":
+        g = case.gains
+        return PIDController(dt=ts, kp=g["kp"], ki=g["ki"], kd=g["kd"], n=g["n"], b=g["b"],
+                             c=g["c"])
+    if case.kind == "fpi":
+        return FuzzyPIController.from_systems(du_system(), None, dt=ts, **case.gains)
+    if case.kind == "stfpi":
+        return SelfTuningFuzzyPIController.from_systems(du_system(), alpha_system(), dt=ts,
+                                                        **case.gains)
+    raise ParameterError(f"unknown controller kind {case.kind!r}; allowed: pid, fpi, stfpi")
+
+
+def build_plant(kind: str, params: ServoParams) -> LinearPlant | NonlinearPlant:
+    """The linear (eq. 8 at mid-stroke) or nonlinear plant, at rest at mid-stroke."""
+    position = 0.5 * params.cylinder.stroke
+    if kind == "linear":
+        return LinearPlant.from_servo(LinearServo.from_params(params,
+                                                              linearize(params, position)))
+    if kind == "nonlinear":
+        return NonlinearPlant.from_params(params, position)
+    raise ParameterError(f"unknown plant {kind!r}; allowed: linear, nonlinear")
+
+
+def variants(kind: str, params: ServoParams) -> dict[str, ServoParams]:
+    """The changed plants of claim C8 (gains fixed)."""
+    out = {
+        "load mass x0.5": with_overrides(params, {"load.mass": 0.5 * params.load.mass}),
+        "load mass x2": with_overrides(params, {"load.mass": 2.0 * params.load.mass}),
+        "oil bulk modulus x0.5": with_overrides(
+            params, {"fluid.oil_bulk_modulus": 0.5 * params.fluid.oil_bulk_modulus}),
+        "supply pressure -500 kPa": with_overrides(
+            params, {"supply.pressure": params.supply.pressure - 5.0e5}),
+    }
+    if kind == "nonlinear":
+        out["supply ripple +-500 kPa"] = with_overrides(
+            params, {"supply.ripple_amplitude": 5.0e5})
+    return out
+
+
+def metrics_dict(res: SimResult, step: float) -> dict[str, float]:
+    """Step metrics of a run (the same call ``fuzzyservo simulate --metrics`` makes)."""
+    m = step_metrics(res.t, res.y, u=res.u, r=res.r).as_dict()
+    m["steady_state_error_fraction"] = m["steady_state_error"] / step
+    return m
+
+
+def _batch_metrics(names: Sequence[str], row: FloatArray, step: float) -> dict[str, float]:
+    m = {n: float(v) for n, v in zip(names, row, strict=True)}
+    m["steady_state_error_fraction"] = m["steady_state_error"] / step
+    return m
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PlantStudy:
+    """Everything the study computed for one plant."""
+
+    plant: str
+    cases: tuple[ControllerCase, ...]
+    runs: dict[str, SimResult]
+    metrics: dict[str, dict[str, float]]
+    delayed: SimResult
+    delayed_metrics: dict[str, float]
+    delays: FloatArray
+    sweep: dict[str, dict[str, FloatArray]]  # key -> metric -> (n_delays,)
+    delay_margins: dict[str, float]
+    variant_metrics: dict[str, dict[str, dict[str, float]]]
+    variant_runs: dict[str, SimResult]  # self-tuning fuzzy PI on each changed plant
+    claims: list[Claim] = field(default_factory=list)
+
+
+def _failed(settling: float, diverged: bool) -> bool:
+    return diverged or math.isnan(settling)
+
+
+def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Mapping[str, float]],
+                    *, tick: Callable[[str], None] | None = None) -> PlantStudy:
+    """Run every experiment of the study on one plant ("linear" or "nonlinear").
+
+    ``tick(stage)`` is called after each stage, for a progress display.
+    """
+    def done(stage: str) -> None:
+        if tick is not None:
+            tick(stage)
+
+    cases = study_cases(tuned, cfg.pid_filter)
+    plant = build_plant(kind, cfg.params)
+    ref = Step(cfg.step)
+    runs: dict[str, SimResult] = {}
+    metrics: dict[str, dict[str, float]] = {}
+    for case in cases:
+        ctl = build_controller(case, cfg.ts)
+        runs[case.key] = simulate(ctl, plant, ref, duration=cfg.duration)
+        metrics[case.key] = metrics_dict(runs[case.key], cfg.step)
+    done(f"{kind}: nominal runs")
+
+    st_case = next(c for c in cases if c.key == "stfpi")
+    delayed = simulate(build_controller(st_case, cfg.ts), plant, ref, duration=cfg.duration,
+                       delay=cfg.hose_delay)
+    delayed_metrics = metrics_dict(delayed, cfg.step)
+
+    delays = np.asarray(cfg.delay_sweep, dtype=np.float64)
+    sweep: dict[str, dict[str, FloatArray]] = {}
+    margins: dict[str, float] = {}
+    for case in cases:
+        ctl = build_controller(case, cfg.ts)
+        b = simulate_batch(ctl, np.tile(_gain_row(ctl), (delays.size, 1)),
+                           plant=plant, reference=ref, duration=cfg.duration, delay=delays)
+        sweep[case.key] = {n: b.metric(n).copy() for n in ("overshoot", "settling_time",
+                                                           "iae", "u_max")}
+        sweep[case.key]["diverged"] = b.diverged.astype(np.float64)
+        margin = math.nan
+        for d, ts_, dv in zip(delays, b.metric("settling_time"), b.diverged, strict=True):
+            if _failed(float(ts_), bool(dv)):
+                break
+            margin = float(d)
+        margins[case.key] = margin
+    done(f"{kind}: delay sweep")
+
+    var_params = variants(kind, cfg.params)
+    var_plants = [build_plant(kind, p) for p in var_params.values()]
+    var_metrics: dict[str, dict[str, dict[str, float]]] = {v: {} for v in var_params}
+    var_runs: dict[str, SimResult] = {}
+    for case in cases:
+        ctl = build_controller(case, cfg.ts)
+        b = simulate_batch(ctl, np.tile(_gain_row(ctl), (len(var_plants), 1)),
+                           plant=var_plants, reference=ref, duration=cfg.duration)
+        for i, name in enumerate(var_params):
+            var_metrics[name][case.key] = _batch_metrics(b.metric_names, b.metrics[i],
+                                                         cfg.step)
+    for name, p in zip(var_params, var_plants, strict=True):
+        var_runs[name] = simulate(build_controller(st_case, cfg.ts), p, ref,
+                                  duration=cfg.duration)
+    done(f"{kind}: changed plants")
+
+    labels = {c.key: c.label for c in cases}
+    claims = evaluate_claims(
+        kind, metrics, labels, stfpi="stfpi", fpi="fpi",
+        paper_pids=("pid_paper_1", "pid_paper_2"), tuned_pids=("pid_tuned", "pid2_tuned"),
+        alpha_trace=(runs["stfpi"].t, runs["stfpi"].alpha), delayed=delayed_metrics,
+        delay=cfg.hose_delay, delay_margins=margins, variants=var_metrics)
+    return PlantStudy(plant=kind, cases=tuple(cases), runs=runs, metrics=metrics,
+                      delayed=delayed, delayed_metrics=delayed_metrics, delays=delays,
+                      sweep=sweep, delay_margins=margins, variant_metrics=var_metrics,
+                      variant_runs=var_runs, claims=claims)
+
+
+def _gain_row(ctl: Any) -> FloatArray:
+    """The controller's own gains as one batch row (columns ``ctl.gain_names``)."""
+    return np.array([float(getattr(ctl, n)) for n in ctl.gain_names], dtype=np.float64)
+
+
+def replace_gains(tuned: Mapping[str, Mapping[str, float]], name: str,
+                  **gains: float) -> dict[str, dict[str, float]]:
+    """A copy of ``tuned`` with some gains of controller ``name`` changed (for what-if runs)."""
+    out = {k: dict(v) for k, v in tuned.items()}
+    out[name].update(gains)
+    return out
+

@@ -1,0 +1,133 @@
+"""A self-contained, offline HTML report: figures embedded as base64 PNG, tables as HTML.
+
+The report opens without a network connection or any file beside it. It is written from
+records the study computed (no simulation happens here).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["Figure", "Section", "Table", "render_html", "write_html"]
+
+
+@dataclass(frozen=True, slots=True)
+class Figure:
+    """A PNG file to embed, with its caption."""
+
+    png: Path
+    caption: str
+
+
+@dataclass(frozen=True, slots=True)
+class Table:
+    """A table: header and rows of cells (numbers are formatted with 4 significant digits)."""
+
+    header: Sequence[str]
+    rows: Sequence[Sequence[object]]
+    caption: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Section:
+    """A titled section of paragraphs, tables and figures, rendered in that order."""
+
+    title: str
+    paragraphs: Sequence[str] = ()
+    tables: Sequence[Table] = ()
+    figures: Sequence[Figure] = ()
+    items: Sequence[str] = field(default=())
+
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;
+margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
+h1{font-size:1.6em}
+h2{font-size:1.25em;border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:2em}
+table{border-collapse:collapse;margin:.8em 0;font-size:.9em}
+th,td{border:1px solid #ccc;padding:.25em .5em;text-align:left;vertical-align:top}
+th{background:#f2f2f2}td.num{text-align:right;font-variant-numeric:tabular-nums}
+figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
+figcaption{font-size:.9em;color:#555}.holds{color:#1a7f37;font-weight:600}
+.does-not-hold{color:#b42318;font-weight:600}.holds-under-stated-conditions{color:#9a6700;font-weight:600}
+caption{caption-side:top;text-align:left;font-weight:600;padding:.3em 0}
+"""
+
+
+def _fmt(value: object) -> tuple[str, bool]:
+    """Cell text and whether it is numeric."""
+    if isinstance(value, bool):
+        return ("yes" if value else "no"), False
+    if isinstance(value, int):
+        return str(value), True
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "n/a", True
+        if value == 0.0:
+            return "0", True
+        if abs(value) >= 1e5 or abs(value) < 1e-3:
+            return f"{value:.4g}", True
+        return f"{value:.4g}", True
+    return str(value), False
+
+
+def _table(t: Table) -> str:
+    out = ["<table>"]
+    if t.caption:
+        out.append(f"<caption>{html.escape(t.caption)}</caption>")
+    out.append("<tr>" + "".join(f"<th>{html.escape(str(h))}</th>" for h in t.header) + "</tr>")
+    for row in t.rows:
+        cells = []
+        for v in row:
+            text, num = _fmt(v)
+            cls = ""
+            if num:
+                cls = ' class="num"'
+            elif text in ("holds", "does not hold", "holds under stated conditions"):
+                cls = f' class="{text.replace(" ", "-")}"'
+            cells.append(f"<td{cls}>{html.escape(text)}</td>")
+        out.append("<tr>" + "".join(cells) + "</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+def _figure(f: Figure) -> str:
+    data = base64.b64encode(Path(f.png).read_bytes()).decode("ascii")
+    return (f'<figure><img alt="{html.escape(f.caption)}" src="data:image/png;base64,{data}">'
+            f"<figcaption>{html.escape(f.caption)}</figcaption></figure>")
+
+
+def render_html(title: str, sections: Sequence[Section],
+                meta: Mapping[str, str] | None = None) -> str:
+    """Render the report to one HTML string with everything embedded."""
+    parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
+             f"<h1>{html.escape(title)}</h1>"]
+    if meta:
+        parts.append("<p>" + "<br>".join(f"<b>{html.escape(k)}</b>: {html.escape(v)}"
+                                         for k, v in meta.items()) + "</p>")
+    for s in sections:
+        parts.append(f"<h2>{html.escape(s.title)}</h2>")
+        parts.extend(f"<p>{html.escape(p)}</p>" for p in s.paragraphs)
+        if s.items:
+            parts.append("<ul>" + "".join(f"<li>{html.escape(i)}</li>" for i in s.items)
+                         + "</ul>")
+        parts.extend(_table(t) for t in s.tables)
+        parts.extend(_figure(f) for f in s.figures)
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def write_html(path: Path, title: str, sections: Sequence[Section],
+               meta: Mapping[str, str] | None = None) -> Path:
+    """Write :func:`render_html` to ``path`` atomically and return the path."""
+    path = Path(path)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(render_html(title, sections, meta), encoding="utf-8")
+    tmp.replace(path)
+    return path
