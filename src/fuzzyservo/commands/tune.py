@@ -1,0 +1,169 @@
+"""``fuzzyservo tune``: automatic step-response tuning of a controller on the servo.
+
+``fuzzyservo tune --controller pid|pid2|fpi|stfpi --plant linear|nonlinear --objective itae
+--max-overshoot 10 [--max-sse 0.2] [--max-u 1] [--seed 0] [--set paper] [--param ...]
+[--step 0.1] [--duration 10] [--ts 0.001] [--delay 0] --out gains.toml [--resume]``
+
+A progress bar per search stage goes to stderr. Ctrl-C writes the current population to
+``OUT.partial.npz`` next to ``--out``; ``--resume`` continues from it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from ..analysis.autotune import (
+    CONTROLLER_KINDS,
+    PLANT_KINDS,
+    Checkpoint,
+    TuningProgress,
+    TuningSetup,
+    load_checkpoint,
+    save_checkpoint,
+    tune_controller,
+    write_gains_toml,
+)
+from ..analysis.tuning import OBJECTIVES, TuningConstraints
+from ..errors import ParameterError
+from ..paper import alpha_system, du_system
+from ._plantargs import add_plant_arguments, params_from_args, parse_param
+
+__all__ = ["checkpoint_path", "register"]
+
+
+def checkpoint_path(out: Path) -> Path:
+    """Where an interrupted tuning for ``out`` keeps its population."""
+    return out.with_name(out.name + ".partial.npz")
+
+
+def register(subparsers: Any) -> None:
+    """Add the ``tune`` subcommand."""
+    p = subparsers.add_parser(
+        "tune", help="tune a controller by step-response search",
+        description="Tune PID, 2-DOF PID, fuzzy PI or self-tuning fuzzy PI gains on the "
+                    "linear or nonlinear servo by differential evolution over the batched "
+                    "simulator, and write them to a TOML file.")
+    p.add_argument("--controller", required=True, metavar="NAME",
+                   help=f"controller: {', '.join(CONTROLLER_KINDS)}")
+    p.add_argument("--plant", default="linear", metavar="NAME",
+                   help=f"plant: {', '.join(PLANT_KINDS)} (default linear)")
+    p.add_argument("--objective", default="itae", metavar="NAME",
+                   help=f"objective: {', '.join(OBJECTIVES)} (default itae)")
+    p.add_argument("--max-overshoot", type=float, default=10.0, metavar="PERCENT",
+                   help="largest allowed overshoot in percent (default 10)")
+    p.add_argument("--max-sse", type=float, default=0.2, metavar="PERCENT",
+                   help="largest allowed |steady-state error| in percent of the step "
+                        "(default 0.2)")
+    p.add_argument("--max-u", type=float, default=None, metavar="U",
+                   help="largest allowed |u| as a fraction of the rated command (default none)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the search (default 0)")
+    p.add_argument("--popsize", type=int, default=10,
+                   help="population multiplier (default 10)")
+    p.add_argument("--maxiter", type=int, default=40, help="generation limit (default 40)")
+    p.add_argument("--step", type=float, default=0.1, metavar="M",
+                   help="reference step [m] (default 0.1)")
+    p.add_argument("--duration", type=float, default=10.0, metavar="S",
+                   help="simulated time per run [s] (default 10)")
+    p.add_argument("--ts", type=float, default=0.001, metavar="S",
+                   help="controller sample period [s] (default 0.001)")
+    p.add_argument("--delay", type=float, default=0.0, metavar="S",
+                   help="transport delay on the command [s] (default 0)")
+    p.add_argument("--start", type=float, default=0.5, metavar="FRACTION",
+                   help="start position as a fraction of the stroke (default 0.5)")
+    p.add_argument("--out", type=Path, required=True, metavar="FILE.toml",
+                   help="gains file to write")
+    p.add_argument("--resume", action="store_true",
+                   help="continue from OUT.partial.npz left by an interrupted run")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    add_plant_arguments(p)
+    p.set_defaults(handler=run)
+
+
+def _setup(args: argparse.Namespace) -> TuningSetup:
+    for name, value in (("--max-overshoot", args.max_overshoot), ("--max-sse", args.max_sse),
+                        ("--max-u", args.max_u)):
+        if value is not None and not (math.isfinite(value) and value >= 0.0):
+            raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
+    overrides = tuple(parse_param(t) for t in args.param_overrides)
+    return TuningSetup(
+        controller=args.controller, plant=args.plant, param_set=args.param_set,
+        overrides=overrides, start=args.start, step=args.step, duration=args.duration,
+        ts=args.ts, delay=args.delay, objective=args.objective,
+        constraints=TuningConstraints(max_overshoot=args.max_overshoot,
+                                      max_steady_state_error=args.max_sse / 100.0,
+                                      max_u=args.max_u),
+        seed=args.seed, popsize=args.popsize, maxiter=args.maxiter)
+
+
+class _Progress:
+    """tqdm bar per stage on stderr; one line per stage when stderr is not a terminal."""
+
+    def __init__(self, setup: TuningSetup, quiet: bool) -> None:
+        self.setup = setup
+        self.quiet = quiet
+        self.latest: Checkpoint | None = None
+        self.bar: Any = None
+        self.stage = ""
+        self.plain = os.environ.get("CI", "").lower() == "true" or not sys.stderr.isatty()
+
+    def __call__(self, p: TuningProgress) -> None:
+        self.latest = Checkpoint.from_progress(self.setup, p)
+        if self.quiet:
+            return
+        if p.stage != self.stage:
+            self.close()
+            self.stage = p.stage
+            if not self.plain:
+                from tqdm import tqdm
+
+                self.bar = tqdm(total=p.max_generations, desc=f"tune {p.stage}", unit="gen",
+                                file=sys.stderr, leave=True)
+        if self.bar is not None:
+            self.bar.set_postfix(best=f"{p.best_cost:.4g}", runs=p.n_evaluations)
+            self.bar.update(1)
+        elif p.generation == 1 or p.generation % 10 == 0:
+            print(f"tune {p.stage}: generation {p.generation}/{p.max_generations}, "
+                  f"best cost {p.best_cost:.4g}, {p.n_evaluations} runs", file=sys.stderr,
+                  flush=True)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Handler of ``fuzzyservo tune``."""
+    setup = _setup(args)
+    params = params_from_args(args)
+    out: Path = args.out
+    ckpt_file = checkpoint_path(out)
+    resume = load_checkpoint(ckpt_file) if args.resume else None
+    progress = _Progress(setup, args.quiet)
+    try:
+        tuned = tune_controller(setup, params, du_system=du_system(),
+                                alpha_system=alpha_system(), progress=progress, resume=resume)
+    except KeyboardInterrupt:
+        progress.close()
+        if progress.latest is not None:
+            save_checkpoint(ckpt_file, progress.latest)
+            print(f"fuzzyservo: interrupted; population saved to {ckpt_file} "
+                  f"(continue with --resume)", file=sys.stderr)
+        return 130
+    progress.close()
+    write_gains_toml(out, tuned)
+    if args.resume and ckpt_file.exists():
+        ckpt_file.unlink()
+    gains = ", ".join(f"{k}={v:.6g}" for k, v in tuned.gains.items())
+    m = tuned.metrics
+    print(f"{tuned.controller} on the {setup.plant} plant: {gains}")
+    print(f"{setup.objective}={tuned.objective_value:.6g}, overshoot={m['overshoot']:.3g} %, "
+          f"rise_time={m['rise_time']:.4g} s, settling_time={m['settling_time']:.4g} s, "
+          f"u_max={m['u_max']:.3g}, feasible={'yes' if tuned.feasible else 'no'}, "
+          f"{tuned.n_evaluations} runs in {tuned.elapsed:.1f} s -> {out}")
+    return 0
