@@ -20,6 +20,7 @@ COMMANDS: tuple[str, ...] = (
     "metrics",
     "linearize",
     "simulate",
+    "tune",
     "surface",
     "reproduce",
 )
