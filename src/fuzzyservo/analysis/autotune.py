@@ -132,6 +132,8 @@ class TuningSetup:
         Differential-evolution population multiplier and generation limit (stage 1 for stfpi).
     pid_n : float
         Derivative filter coefficient of the PIDs [1/s].
+    polish : bool
+        Finish each search stage with a bounded Nelder-Mead polish (serial runs).
     bounds : GainBounds or None
         Search box; None uses :func:`default_bounds`.
     """
@@ -151,6 +153,7 @@ class TuningSetup:
     popsize: int = 10
     maxiter: int = 40
     pid_n: float = 100.0
+    polish: bool = True
     bounds: GainBounds | None = None
 
     def __post_init__(self) -> None:
@@ -523,55 +526,55 @@ def _search(setup: TuningSetup, evaluate: Evaluator, bounds: GainBounds, stage: 
 
     res = tune(counted, bounds, objective=setup.objective, constraints=setup.constraints,
                step_size=setup.step, seed=seed, popsize=popsize, maxiter=maxiter,
-               init=init, on_generation=on_gen)
+               init=init, polish=setup.polish, on_generation=on_gen)
     return np.array([[res.gains[n] for n in bounds.names]]), count["n"]
 
 
 def _rise_match(setup: TuningSetup, evaluate: Evaluator, ke: float, kde: float, kdu1: float,
                 target: float, upper: float) -> tuple[float, int]:
-    """kdu >= kdu1 whose rise time is closest to ``target`` (batched bracketing + bisection).
+    """Smallest kdu >= kdu1 whose rise time is <= ``target``, by batched bracketing and
+    bisection (15 points per round, one batch each).
 
-    The boundary sought is the smallest kdu whose rise time is <= target; rise time can jump
-    where the response reaches 90 % on a different oscillation, so of every kdu evaluated the
-    one with the rise time nearest the target (then the smallest) is returned.
+    Where the rise time is continuous in kdu the bracket ends agree to within a sample. It
+    jumps where the first overshoot hump crosses the 90 % line; then the end of the final
+    bracket whose rise time is nearer the target is returned. If no kdu in the box reaches the
+    target, the fastest evaluated kdu is returned.
     """
-    seen_k: list[float] = []
-    seen_t: list[float] = []
+    n_eval = 0
 
     def rise(kdus: FloatArray) -> FloatArray:
+        nonlocal n_eval
         g = np.column_stack([np.full(kdus.size, ke), np.full(kdus.size, kde), kdus])
+        n_eval += kdus.size
         tr = evaluate(g)["rise_time"]
-        tr = np.where(np.isfinite(tr), tr, np.inf)
-        seen_k.extend(float(k) for k in kdus)
-        seen_t.extend(float(x) for x in tr)
-        return tr
+        return np.where(np.isfinite(tr), tr, np.inf)
 
     lo = kdu1
-    if rise(np.array([lo]))[0] > target:
-        grid = lo * np.geomspace(1.0, 1e3, 16)[1:]
-        grid = grid[grid <= upper] if np.any(grid <= upper) else np.array([upper])
-        tr = rise(grid)
+    tr_lo = float(rise(np.array([lo]))[0])
+    if tr_lo <= target:
+        return lo, n_eval
+    grid = lo * np.geomspace(1.0, 1e3, 16)[1:]
+    grid = grid[grid <= upper] if np.any(grid <= upper) else np.array([upper])
+    tr = rise(grid)
+    ok = np.nonzero(tr <= target)[0]
+    if ok.size == 0:
+        return float(grid[int(np.argmin(tr))]), n_eval
+    i = int(ok[0])
+    hi, tr_hi = float(grid[i]), float(tr[i])
+    if i > 0:
+        lo, tr_lo = float(grid[i - 1]), float(tr[i - 1])
+    for _ in range(8):  # each round divides the log-bracket by 15
+        if hi / lo - 1.0 < 1e-7 or tr_lo - target <= setup.ts:
+            break
+        pts = np.geomspace(lo, hi, 17)[1:-1]
+        tr = rise(pts)
         ok = np.nonzero(tr <= target)[0]
-        if ok.size:
-            i = int(ok[0])
-            hi = float(grid[i])
-            lo = float(grid[i - 1]) if i > 0 else lo
-            for _ in range(6):  # each round divides the log-bracket by 15
-                if hi / lo - 1.0 < 1e-6:
-                    break
-                pts = np.geomspace(lo, hi, 16)[1:-1]
-                tr = rise(pts)
-                ok = np.nonzero(tr <= target)[0]
-                if ok.size:
-                    hi = float(pts[ok[0]])
-                    if ok[0] > 0:
-                        lo = float(pts[ok[0] - 1])
-                else:
-                    lo = float(pts[-1])
-    k = np.asarray(seen_k)
-    miss = np.abs(np.asarray(seen_t) - target)
-    best = np.nonzero(miss == miss.min())[0]
-    return float(k[best].min()), len(seen_k)
+        j = int(ok[0]) if ok.size else pts.size
+        if j < pts.size:
+            hi, tr_hi = float(pts[j]), float(tr[j])
+        if j > 0:
+            lo, tr_lo = float(pts[j - 1]), float(tr[j - 1])
+    return (lo if tr_lo - target < target - tr_hi else hi), n_eval
 
 
 def tune_controller(setup: TuningSetup, params: ServoParams, *,
@@ -609,8 +612,8 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
     The stfpi procedure is the paper's Sec. III A, steps 1-3; step 2's rise-time match is a
     batched bracketing of kdu on a log grid followed by bisection to the smallest kdu >= step
     1's whose 10-90 % rise time does not exceed step 1's; step 3 is a differential evolution
-    (``popsize`` 5, ``maxiter // 2`` generations) in a box of a factor 3 around step 2,
-    started from step 2, plus a polish.
+    (``popsize`` 5, ``maxiter // 2`` generations) in the box spanning steps 1 and 2 widened by
+    a factor 3, its population seeded with both, plus a polish.
     """
     if resume is not None and (resume.controller, resume.plant, resume.objective) != (
             setup.controller, setup.plant, setup.objective):
@@ -665,15 +668,15 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
             done["rise"] = tuple(float(v) for v in g2[0])
         stages.append(_record("rise", setup, setup, g2, ev(g2), n2 + 1))
         # step 3: refine the three gains around step 2
-        lo = np.maximum(np.asarray(bounds.lower), g2[0] / 3.0)
-        hi = np.minimum(np.asarray(bounds.upper), g2[0] * 3.0)
+        lo = np.maximum(np.asarray(bounds.lower), np.minimum(g1[0], g2[0]) / 3.0)
+        hi = np.minimum(np.asarray(bounds.upper), np.maximum(g1[0], g2[0]) * 3.0)
         local = GainBounds(names=bounds.names, lower=tuple(lo), upper=tuple(hi),
                            log_scale=bounds.log_scale)
         init3 = init_for("refine")
         if init3 is None:
             rng = np.random.default_rng(setup.seed)
-            z = rng.uniform(np.log10(lo), np.log10(hi), size=(14, 3))
-            init3 = np.vstack([g2, 10.0 ** z])
+            z = rng.uniform(np.log10(lo), np.log10(hi), size=(13, 3))
+            init3 = np.vstack([g2, g1, 10.0 ** z])
         g3, n3 = _search(setup, ev, local, "refine", popsize=5,
                          maxiter=max(setup.maxiter // 2, 1), init=init3, seed=setup.seed,
                          done=done, progress=progress)
@@ -722,7 +725,7 @@ def write_gains_toml(path: str | Path, tuned: TunedGains) -> Path:
             "overrides": {k: float(v) for k, v in s.overrides},
             "start": s.start, "step": s.step, "duration": s.duration, "ts": s.ts,
             "delay": s.delay, "objective": s.objective, "seed": s.seed,
-            "popsize": s.popsize, "maxiter": s.maxiter, "pid_n": s.pid_n,
+            "popsize": s.popsize, "maxiter": s.maxiter, "pid_n": s.pid_n, "polish": s.polish,
             "constraints": _constraints_table(s.constraints),
             "bounds": {n: [lo, hi, lg] for n, lo, hi, lg in
                        zip(b.names, b.lower, b.upper, b.log_scale, strict=True)},
@@ -751,12 +754,12 @@ class _Reader:
     def get(self, table: Mapping[str, Any], key: str, kind: type | tuple[type, ...],
             where: str) -> Any:
         if key not in table:
-            raise InputError(f"{str(self.path)!r}: missing key {where}{key!r}")
+            raise InputError(f"{str(self.path)!r}: missing key '{where}{key}'")
         v = table[key]
         if kind is float and isinstance(v, int) and not isinstance(v, bool):
             v = float(v)
         if not isinstance(v, kind) or (kind is not bool and isinstance(v, bool)):
-            raise InputError(f"{str(self.path)!r}: key {where}{key!r} has the wrong type "
+            raise InputError(f"{str(self.path)!r}: key '{where}{key}' has the wrong type "
                              f"({type(v).__name__}: {v!r})")
         return v
 
@@ -816,7 +819,8 @@ def read_gains_toml(path: str | Path) -> TunedGains:
             delay=rd.get(tu, "delay", float, w), objective=rd.get(tu, "objective", str, w),
             constraints=constraints, seed=rd.get(tu, "seed", int, w),
             popsize=rd.get(tu, "popsize", int, w), maxiter=rd.get(tu, "maxiter", int, w),
-            pid_n=rd.get(tu, "pid_n", float, w), bounds=bounds)
+            pid_n=rd.get(tu, "pid_n", float, w), polish=rd.get(tu, "polish", bool, w),
+            bounds=bounds)
     except ParameterError as exc:
         raise InputError(f"{str(path)!r}: {exc}") from exc
     needed = PIDController.gain_names if controller in ("pid", "pid2") \

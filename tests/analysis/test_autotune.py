@@ -1,0 +1,220 @@
+"""Step-response tuning on the servo: constraints hold when re-simulated, the 1-DOF PID must
+overshoot on the integrating plant while the 2-DOF one need not (model-notes §5.1), the
+self-tuning procedure's step 2 recovers step 1's rise time, TOML and checkpoints round-trip."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fuzzyservo.analysis.autotune import (
+    Checkpoint,
+    TunedGains,
+    TuningProgress,
+    TuningSetup,
+    default_bounds,
+    full_gains,
+    load_checkpoint,
+    make_evaluator,
+    read_gains_toml,
+    save_checkpoint,
+    tune_controller,
+    write_gains_toml,
+)
+from fuzzyservo.analysis.step_metrics import step_metrics
+from fuzzyservo.analysis.tuning import TuningConstraints
+from fuzzyservo.control import PIDController, SelfTuningFuzzyPIController
+from fuzzyservo.errors import InputError, ParameterError
+from fuzzyservo.paper import alpha_system, du_system, named_set
+from fuzzyservo.plant import LinearServo, linearize
+from fuzzyservo.sim import LinearPlant, Step, simulate
+
+PARAMS = named_set("paper")
+TS = 0.001
+
+
+def _linear_plant() -> LinearPlant:
+    pos = 0.5 * PARAMS.cylinder.stroke
+    return LinearPlant.from_servo(LinearServo.from_params(PARAMS, linearize(PARAMS, pos)))
+
+
+@pytest.fixture(scope="module")
+def tuned_pid() -> TunedGains:
+    setup = TuningSetup(controller="pid", plant="linear", duration=5.0, popsize=5, maxiter=8)
+    return tune_controller(setup, PARAMS)
+
+
+@pytest.fixture(scope="module")
+def tuned_stfpi() -> TunedGains:
+    setup = TuningSetup(controller="stfpi", plant="linear", duration=5.0, popsize=4,
+                        maxiter=6)
+    return tune_controller(setup, PARAMS, du_system=du_system(), alpha_system=alpha_system())
+
+
+def test_tuned_pid_meets_the_constraints_when_simulated_again(tuned_pid: TunedGains) -> None:
+    g = tuned_pid.gains
+    assert (g["n"], g["b"], g["c"]) == (100.0, 1.0, 1.0)  # fixed, 1-DOF
+    ctl = PIDController(dt=TS, **g)
+    res = simulate(ctl, _linear_plant(), Step(0.1), duration=5.0)
+    m = step_metrics(res.t, res.y, u=res.u, r=res.r)
+    assert tuned_pid.feasible
+    assert m.overshoot <= 10.0
+    assert abs(m.steady_state_error) <= 0.002 * 0.1
+    assert math.isfinite(m.settling_time)
+    # same compiled loop per step and batched: equal to rounding
+    assert m.itae == pytest.approx(tuned_pid.metrics["itae"], rel=1e-9)
+
+
+def test_evaluator_equals_the_per_step_simulation() -> None:
+    setup = TuningSetup(controller="pid2", plant="linear", duration=5.0)
+    ev = make_evaluator(setup, PARAMS)
+    gains = np.array([[8.0, 0.5, 0.001, 0.9], [6.0, 2.0, 0.002, 0.5]])
+    out = ev(gains)
+    for row, full in zip(range(2), full_gains(setup, gains), strict=True):
+        assert full[3:].tolist() == [100.0, gains[row, 3], 0.0]  # n fixed, c = 0
+        ctl = PIDController(dt=TS, **dict(zip(PIDController.gain_names, full, strict=True)))
+        res = simulate(ctl, _linear_plant(), Step(0.1), duration=5.0)
+        m = step_metrics(res.t, res.y, u=res.u, r=res.r)
+        for key in ("overshoot", "itae", "rise_time", "u_max"):
+            assert math.isfinite(out[key][row])
+            # same njit step functions and metric core: equal to rounding
+            assert out[key][row] == pytest.approx(getattr(m, key), rel=1e-9, abs=1e-12)
+
+
+def test_one_dof_pid_must_overshoot_while_two_dof_need_not() -> None:
+    """With b = c = 1, sum(e) = 0 on an integrating loop, so e must go negative (overshoot);
+    with b < 1 the integral of e is kp (1 - b)/ki > 0 and no overshoot is forced."""
+    tight = TuningConstraints(max_overshoot=0.5)
+    s1 = TuningSetup(controller="pid", duration=5.0, popsize=5, maxiter=8, constraints=tight,
+                     polish=False)
+    s2 = dataclasses.replace(s1, controller="pid2")
+    one = tune_controller(s1, PARAMS)
+    two = tune_controller(s2, PARAMS)
+    assert two.feasible and two.metrics["overshoot"] <= 0.5
+    assert two.gains["b"] < 1.0 and two.gains["c"] == 0.0
+    assert one.metrics["overshoot"] > 0.0
+
+
+def test_stfpi_step_two_recovers_step_one_rise_time(tuned_stfpi: TunedGains) -> None:
+    s1, s2, s3 = (tuned_stfpi.stage(n) for n in ("fpi", "rise", "refine"))
+    assert (s2.gains["ke"], s2.gains["kde"]) == (s1.gains["ke"], s1.gains["kde"])
+    assert s2.gains["kdu"] >= s1.gains["kdu"]
+    assert s2.metrics["rise_time"] == pytest.approx(s1.metrics["rise_time"], abs=TS)  # 1 sample
+    assert tuned_stfpi.gains == s3.gains
+    # the refinement starts from step 2, so it is never worse
+    assert s3.objective_value <= s2.objective_value or not s2.feasible
+    # the stored metrics are those of the self-tuning controller with those gains
+    ctl = SelfTuningFuzzyPIController.from_systems(du_system(), alpha_system(), dt=TS,
+                                                   **tuned_stfpi.gains)
+    res = simulate(ctl, _linear_plant(), Step(0.1), duration=5.0)
+    m = step_metrics(res.t, res.y, u=res.u, r=res.r)
+    assert m.itae == pytest.approx(tuned_stfpi.metrics["itae"], rel=1e-9)  # same kernels
+
+
+def _same(a: float, b: float) -> bool:
+    return (math.isnan(a) and math.isnan(b)) or a == b
+
+
+def test_toml_round_trip(tmp_path: Path, tuned_stfpi: TunedGains) -> None:
+    path = write_gains_toml(tmp_path / "g.toml", tuned_stfpi)
+    back = read_gains_toml(path)
+    assert back.gains == tuned_stfpi.gains
+    assert back.setup == dataclasses.replace(tuned_stfpi.setup,
+                                             bounds=tuned_stfpi.setup.search_bounds())
+    assert all(_same(back.metrics[k], v) for k, v in tuned_stfpi.metrics.items())
+    assert [s.name for s in back.stages] == ["fpi", "rise", "refine"]
+    assert back.stage("rise").gains == tuned_stfpi.stage("rise").gains
+    assert (back.feasible, back.n_evaluations, back.version, back.date) == (
+        tuned_stfpi.feasible, tuned_stfpi.n_evaluations, tuned_stfpi.version,
+        tuned_stfpi.date)
+
+
+def test_committed_gain_files_load() -> None:
+    root = Path(__file__).resolve().parents[2] / "src" / "fuzzyservo" / "data" / "gains"
+    files = sorted(root.glob("*.toml"))
+    for f in files:
+        t = read_gains_toml(f)
+        assert f.stem == f"{t.setup.plant}-{t.controller}"
+        assert t.setup.objective == "itae" and t.setup.constraints.max_overshoot == 10.0
+
+
+@pytest.mark.parametrize(
+    ("edit", "needle"),
+    [(lambda s: s.replace("kdu = ", "kdx = ", 1), "gains.kdu"),
+     (lambda s: s.replace('objective = "itae"\n', "", 1), "tuning.objective"),
+     (lambda s: s.replace("seed = 0", 'seed = "zero"', 1), "tuning.seed"),
+     (lambda s: s.replace("[result]", "[result_]", 1), "result"),
+     (lambda s: s + "\n[[[", "not valid TOML"),
+     (lambda s: s.replace('controller = "stfpi"', 'controller = "lqr"', 1), "lqr")],
+)
+def test_bad_gains_file_names_the_key(tmp_path: Path, tuned_stfpi: TunedGains,
+                                      edit: object, needle: str) -> None:
+    path = write_gains_toml(tmp_path / "g.toml", tuned_stfpi)
+    assert callable(edit)
+    path.write_text(edit(path.read_text(encoding="utf-8")), encoding="utf-8")
+    with pytest.raises(InputError, match=needle.replace("[", r"\[")):
+        read_gains_toml(path)
+
+
+def test_missing_gains_file(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="nothere"):
+        read_gains_toml(tmp_path / "nothere.toml")
+
+
+def test_checkpoint_round_trip_and_resume(tmp_path: Path) -> None:
+    setup = TuningSetup(controller="pid", duration=3.0, popsize=3, maxiter=2, polish=False)
+    seen: list[Checkpoint] = []
+    best: list[float] = []
+
+    def record(p: TuningProgress) -> None:
+        seen.append(Checkpoint.from_progress(setup, p))
+        best.append(p.best_cost)
+
+    tune_controller(setup, PARAMS, progress=record)
+    assert [c.generation for c in seen] == [1, 2]
+    ck = seen[-1]
+    path = save_checkpoint(tmp_path / "c.npz", ck)
+    back = load_checkpoint(path)
+    assert np.array_equal(back.population, ck.population)
+    assert (back.stage, back.generation, back.controller) == ("search", 2, "pid")
+    resumed = tune_controller(setup, PARAMS, resume=back)
+    # differential evolution keeps the best member of its initial population
+    assert resumed.cost <= best[-1] * (1.0 + 1e-12)  # rounding of the log-scale round trip
+    with pytest.raises(ParameterError, match="checkpoint is for pid"):
+        tune_controller(dataclasses.replace(setup, controller="pid2"), PARAMS, resume=back)
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    with pytest.raises(InputError, match="junk"):
+        load_checkpoint(tmp_path / "junk.npz")
+
+
+@pytest.mark.parametrize(
+    ("kw", "needle"),
+    [({"controller": "lqr"}, "lqr"), ({"controller": "pid", "plant": "spring"}, "spring"),
+     ({"controller": "pid", "objective": "iqe"}, "iqe"),
+     ({"controller": "pid", "delay": -0.1}, "delay"),
+     ({"controller": "pid", "step": 0.0}, "step")],
+)
+def test_setup_validation(kw: dict[str, object], needle: str) -> None:
+    with pytest.raises(ParameterError, match=needle):
+        TuningSetup(**kw)  # type: ignore[arg-type]
+
+
+def test_fuzzy_controllers_need_their_systems() -> None:
+    with pytest.raises(ParameterError, match="alpha_system"):
+        make_evaluator(TuningSetup(controller="stfpi"), PARAMS, du_system=du_system())
+
+
+def test_default_bounds_cover_the_scales_of_model_notes() -> None:
+    f = default_bounds("stfpi", 0.1)
+    # model-notes §5.3 feasibility runs: ke 10, kde 5e3-1e4, kdu 1e-3-6e-3
+    for name, v in (("ke", 10.0), ("kde", 5e3), ("kdu", 1e-3)):
+        i = f.names.index(name)
+        assert f.lower[i] <= v <= f.upper[i]
+    p = default_bounds("pid")  # the paper's PID gains sit inside
+    for name, v in (("kp", 1.2), ("ki", 0.55), ("kd", 0.75)):
+        i = p.names.index(name)
+        assert p.lower[i] <= v <= p.upper[i]
