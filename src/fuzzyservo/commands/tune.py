@@ -79,6 +79,8 @@ def register(subparsers: Any) -> None:
                    help="gains file to write")
     p.add_argument("--resume", action="store_true",
                    help="continue from OUT.partial.npz left by an interrupted run")
+    p.add_argument("--no-polish", dest="polish", action="store_false",
+                   help="skip the Nelder-Mead polish after each search stage")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     add_plant_arguments(p)
     p.set_defaults(handler=run)
@@ -97,7 +99,7 @@ def _setup(args: argparse.Namespace) -> TuningSetup:
         constraints=TuningConstraints(max_overshoot=args.max_overshoot,
                                       max_steady_state_error=args.max_sse / 100.0,
                                       max_u=args.max_u),
-        seed=args.seed, popsize=args.popsize, maxiter=args.maxiter)
+        seed=args.seed, popsize=args.popsize, maxiter=args.maxiter, polish=args.polish)
 
 
 class _Progress:
