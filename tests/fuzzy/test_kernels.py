@@ -83,3 +83,14 @@ def test_batch_equals_scalar_kernel_bitwise() -> None:
     eval_uniform_batch(x1, x2, rules, lims, out)
     want = [eval_uniform_grid(a, b, rules, lims) for a, b in zip(x1, x2, strict=True)]
     np.testing.assert_array_equal(out, want)  # the same njit function: identical bits
+
+
+def test_batch_flags_the_first_non_finite_point() -> None:
+    rules, lims = du_system().uniform_kernel_args()
+    x1 = np.array([0.1, 0.2, np.inf, np.nan, 0.3])
+    x2 = np.zeros(5)
+    out = np.empty(5)
+    assert eval_uniform_batch(x1, x2, rules, lims, out) == 2
+    assert math.isnan(out[2])
+    assert eval_uniform_batch(x1[:2], x2[:2], rules, lims, out[:2]) == -1
+    assert eval_uniform_batch(x1[3:], x2[3:], rules, lims, out[3:]) == 0

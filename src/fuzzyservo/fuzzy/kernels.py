@@ -206,7 +206,28 @@ def eval_uniform_checked(x1: float, x2: float, rules: IntArray, lims: FloatArray
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def eval_uniform_batch(
     x1: FloatArray, x2: FloatArray, rules: IntArray, lims: FloatArray, out: FloatArray
-) -> None:
-    """Fill ``out[i] = eval_uniform_grid(x1[i], x2[i], rules, lims)`` (1-D arrays, one core)."""
+) -> int:
+    """Fill ``out[i] = eval_uniform_grid(x1[i], x2[i], rules, lims)`` (1-D, one core).
+
+    Returns
+    -------
+    int
+        Index of the first point with a non-finite input or a NaN output (no rule fired and
+        the default is NaN), or -1 if there is none: the caller validates with this number.
+    """
+    # x - x is 0 for a finite x and NaN otherwise: one running sum flags any bad point
+    # without a branch in the loop; only then is the first one searched for
+    flag = 0.0
     for i in range(out.shape[0]):
-        out[i] = eval_uniform_grid(x1[i], x2[i], rules, lims)
+        a = x1[i]
+        b = x2[i]
+        v = eval_uniform_grid(a, b, rules, lims)
+        out[i] = v
+        flag += (a - a) + (b - b) + (v - v)
+    if flag == 0.0:
+        return -1
+    for i in range(out.shape[0]):
+        if not (abs(x1[i]) < np.inf and abs(x2[i]) < np.inf) or out[i] != out[i]:
+            out[i] = np.nan
+            return i
+    return -1

@@ -252,27 +252,33 @@ class MamdaniSystem:
             )
         except (TypeError, ValueError) as exc:
             raise InputError(f"inputs must be numeric arrays that broadcast: {exc}") from None
-        bad = ~(np.isfinite(x1) & np.isfinite(x2))
-        if bad.any():
-            k = int(np.flatnonzero(bad.ravel())[0])
-            raise InputError(
-                f"inputs must be finite, got e={x1.ravel()[k]!r}, de={x2.ravel()[k]!r} "
-                f"at flat index {k}"
-            )
         shape = x1.shape
         a = np.ascontiguousarray(x1.ravel())
         b = np.ascontiguousarray(x2.ravel())
         out = np.empty(a.shape[0], dtype=np.float64)
         u = self._c.uniform
         if u is not None:
-            eval_uniform_batch(a, b, u[0], u[1], out)
-        else:
-            defuzz.evaluate_general(self, a, b, out)
-        empty = np.isnan(out)
-        if empty.any():
-            k = int(np.flatnonzero(empty)[0])
-            raise self._empty(float(a[k]), float(b[k]))
+            # the kernel flags the first NaN result: a non-finite input or an empty set
+            if eval_uniform_batch(a, b, u[0], u[1], out) >= 0:
+                self._raise_first_bad(a, b, out)
+            return out.reshape(shape)
+        self._raise_first_bad(a, b, None)
+        defuzz.evaluate_general(self, a, b, out)
+        if np.isnan(out).any():
+            self._raise_first_bad(a, b, out)
         return out.reshape(shape)
+
+    def _raise_first_bad(self, a: FloatArray, b: FloatArray, out: FloatArray | None) -> None:
+        """Raise for the first non-finite input, else for the first empty output (NaN)."""
+        bad = ~(np.isfinite(a) & np.isfinite(b))
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise InputError(
+                f"inputs must be finite, got e={a[k]!r}, de={b[k]!r} at flat index {k}"
+            )
+        if out is not None:
+            k = int(np.flatnonzero(np.isnan(out))[0])
+            raise self._empty(float(a[k]), float(b[k]))
 
     def rule_strengths(self, e: FloatArray, de: FloatArray) -> FloatArray:
         """Firing strength of every rule, shape (n_points, n_rules), inputs already clipped.
