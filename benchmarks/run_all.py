@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["fuzzy_engine.py", "plant.py", "closed_loop.py"]
+ORDER = ["fuzzy_engine.py", "plant.py", "closed_loop.py", "tuning.py"]
 
 
 def main() -> int:
