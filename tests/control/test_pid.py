@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fuzzyservo.control import PIDController, PIDState, p_controller, pi_controller
 from fuzzyservo.errors import ParameterError
@@ -107,3 +109,18 @@ def test_bad_gain_rows_name_the_gain() -> None:
     ctl = PIDController(dt=H, kp=1.0)
     with pytest.raises(ParameterError, match="gain ki"):
         ctl.pack_gains(np.array([[1.0, -2.0, 0.0, 100.0, 1.0, 1.0]]))
+
+
+@settings(max_examples=25, deadline=None)
+@given(a=st.floats(-3, 3), b=st.floats(-3, 3), seed=st.integers(0, 2**32 - 1))
+def test_unsaturated_pid_obeys_superposition(a: float, b: float, seed: int) -> None:
+    """Linear in (r, y) while no limit is reached: u(a x1 + b x2) = a u(x1) + b u(x2)."""
+    ctl = PIDController(dt=H, kp=2.0, ki=3.0, kd=0.1, n=80.0, b=0.4, c=0.2,
+                        u_min=-1e12, u_max=1e12)
+    rng = np.random.default_rng(seed)
+    r1, y1, r2, y2 = rng.normal(size=(4, 50))
+    u1, _ = _run(ctl, r1, y1)
+    u2, _ = _run(ctl, r2, y2)
+    u12, _ = _run(ctl, a * r1 + b * r2, a * y1 + b * y2)
+    scale = 1.0 + np.max(np.abs(u1)) + np.max(np.abs(u2))
+    assert np.max(np.abs(u12 - (a * u1 + b * u2))) <= 1e-12 * 6 * scale  # rounding only
