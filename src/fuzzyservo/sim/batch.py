@@ -7,10 +7,10 @@ loops and the same controller and plant functions); traces are kept only on requ
 metrics (``fuzzyservo.sim.stepinfo.METRIC_NAMES``) are computed inside the kernel on per-chunk
 buffers that are reused from run to run.
 
-Example
--------
->>> res = simulate_batch(ctrl, gains, plant=plant, reference=Step(0.1), duration=5.0)
->>> res.metric("overshoot")            # one value per row of gains        # doctest: +SKIP
+Example (``ctl`` a controller, ``gains`` one row per run, ``plant`` a LinearPlant)::
+
+    res = simulate_batch(ctl, gains, plant=plant, reference=Step(0.1), duration=5.0)
+    res.metric("overshoot")            # one value per row of gains
 """
 
 from __future__ import annotations
