@@ -93,9 +93,12 @@ _FORMAT = 1
 
 
 def _version() -> str:
-    from .. import __version__
+    from importlib.metadata import PackageNotFoundError, version
 
-    return str(__version__)
+    try:
+        return version("fuzzyservo")
+    except PackageNotFoundError:  # running from a source tree that is not installed
+        return "unknown"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
