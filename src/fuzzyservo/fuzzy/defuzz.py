@@ -23,7 +23,7 @@ from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
 
 if TYPE_CHECKING:
-    from .mamdani import MamdaniSpec, MamdaniSystem
+    from .mamdani import MamdaniSystem
     from .rulebase import LinguisticVariable
 
 __all__ = ["centroid_sampled", "check_output", "evaluate_general", "pl_tables"]
@@ -33,7 +33,7 @@ _AGG = {"max": 0, "bounded_sum": 1}
 _DEF = {"exact_centroid": 0, "bisector": 1, "mean_of_maxima": 2}
 
 
-def check_output(output: LinguisticVariable, spec: MamdaniSpec) -> None:
+def check_output(output: LinguisticVariable) -> None:
     """Raise ``ParameterError`` if an output term has no support on the output universe."""
     lo, hi = output.universe
     y = np.linspace(lo, hi, 100_001)
@@ -42,7 +42,6 @@ def check_output(output: LinguisticVariable, spec: MamdaniSpec) -> None:
             raise ParameterError(
                 f"output term {label!r} is zero on the output universe ({lo!r}, {hi!r})"
             )
-    _ = spec
 
 
 def pl_tables(output: LinguisticVariable) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -124,7 +124,7 @@ class MamdaniSystem:
         rule_inputs = np.array([r.antecedent for r in self.rules.rules], dtype=np.int64)
         rule_out = np.array([r.consequent for r in self.rules.rules], dtype=np.int64)
         object.__setattr__(self, "_c", _Compiled(rule_inputs, rule_out, self._uniform_args()))
-        defuzz.check_output(self.rules.output, self.spec)
+        defuzz.check_output(self.rules.output)
 
     @property
     def inputs(self) -> tuple[LinguisticVariable, ...]:
