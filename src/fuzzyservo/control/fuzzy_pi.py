@@ -114,8 +114,8 @@ def _tables(rules: Any, lims: Any, what: str) -> tuple[IntArray, FloatArray]:
     m = np.ascontiguousarray(lims, dtype=np.float64)
     if r.ndim != 2 or min(r.shape) < 2 or m.shape != (8,) or not np.all(np.isfinite(m[:7])):
         raise ParameterError(
-            f"{what} tables need rules (n2, n1 >= 2) and 8 lims (first 7 finite), got rules {r.shape}, "
-            f"lims {m.shape}")
+            f"{what} tables need rules (n2, n1 >= 2) and 8 lims (first 7 finite), "
+            f"got rules {r.shape}, lims {m.shape}")
     n_out = int(m[6])
     if np.any((r < -1) | (r >= n_out)):
         raise ParameterError(f"{what} rules must be -1 or 0..{n_out - 1}")
