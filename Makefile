@@ -25,7 +25,7 @@ $(FLVENV)/.installed-stamp:
 	touch $@
 
 reproduce: $(STAMP)
-	$(BIN)/fuzzyservo reproduce --out results
+	$(BIN)/fuzzyservo reproduce --out results/paper
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

@@ -81,6 +81,7 @@ __all__ = [
     "make_evaluator",
     "read_gains_toml",
     "save_checkpoint",
+    "stage_as_tuned",
     "tune_controller",
     "write_gains_toml",
 ]
@@ -707,6 +708,22 @@ def _constraints_table(c: TuningConstraints) -> dict[str, Any]:
         if v is not None:
             out[name] = float(v)
     return out
+
+
+def stage_as_tuned(tuned: TunedGains, stage: str) -> TunedGains:
+    """One stage of a multi-stage tuning as a result of its own.
+
+    Stage ``"fpi"`` of a self-tuning fuzzy PI tuning is the plain fuzzy PI of the paper's
+    step 1, so it can be written as that controller's gain file.
+    """
+    s = tuned.stage(stage)
+    cost = float(penalised_cost({k: np.array([v]) for k, v in s.metrics.items()},
+                                tuned.setup.objective, tuned.setup.constraints,
+                                tuned.setup.step)[0])
+    return replace(tuned, controller=s.name, gains=dict(s.gains), metrics=dict(s.metrics),
+                   objective_value=s.objective_value, feasible=s.feasible,
+                   setup=replace(tuned.setup, controller=s.name),
+                   n_evaluations=s.n_evaluations, stages=(s,), cost=cost)
 
 
 def write_gains_toml(path: str | Path, tuned: TunedGains) -> Path:

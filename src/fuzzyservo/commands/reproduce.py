@@ -1,19 +1,27 @@
-"""``fuzzyservo reproduce --out DIR``: write the paper's figures that exist so far.
+"""``fuzzyservo reproduce [--out results/paper]``: the paper's study, on both plants.
 
-For now: the membership functions and the two control surfaces of Fig. 3 (PNG). The full
-study (Figs. 4-8) will be added here; each figure is one compute-then-render function in
-``fuzzyservo.plots``.
+Loads the committed tuned gains (``--retune`` tunes afresh), simulates Figs. 4-8, the delay
+sweep and the changed plants on the linear and the nonlinear plant, tests the paper's claims
+and writes PNG and SVG figures, trace CSVs, ``metrics.csv``, ``claims.json`` and an offline
+``report.html``. A second run reuses the cached results unless ``--force``.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime as _dt
+import os
+import sys
+import time
 from pathlib import Path
 from typing import Any
 
-from ..errors import InputError
-from ..paper import alpha_system, du_system
-from ..plots.figures import fig3
+from tqdm import tqdm
+
+from .. import __version__
+from ..study.paper_study import StudyConfig
+from ..study.runner import PLANTS, reproduce
+from ._plantargs import add_plant_arguments, params_from_args
 
 __all__ = ["register", "run"]
 
@@ -22,24 +30,60 @@ def register(subparsers: Any) -> None:
     """Add the ``reproduce`` subcommand to ``subparsers`` and set its handler."""
     parser = subparsers.add_parser(
         "reproduce",
-        help="write the paper's figures into a directory",
-        description="Write the paper's figures (Fig. 3: membership functions and control "
-                    "surfaces) as PNG files into --out.",
+        help="reproduce the paper's study (Figs. 3-8, metrics, claims, report)",
+        description="Reproduce Aly et al. (2012) on the linear and nonlinear plant: figures "
+                    "(PNG, SVG), traces (CSV), metrics.csv, claims.json and report.html.",
     )
-    parser.add_argument("--out", type=Path, default=Path("results"), metavar="DIR",
-                        help="output directory (default: results)")
+    parser.add_argument("--out", type=Path, default=Path("results/paper"), metavar="DIR",
+                        help="output directory (default: results/paper)")
+    parser.add_argument("--retune", action="store_true",
+                        help="tune every controller afresh instead of loading the committed "
+                             "gains (written to OUT/gains)")
+    parser.add_argument("--gains-dir", type=Path, default=None, metavar="DIR",
+                        help="folder of gain files {plant}-{name}.toml (default: the "
+                             "committed ones)")
+    parser.add_argument("--force", action="store_true",
+                        help="recompute even what is cached in OUT/.cache")
+    parser.add_argument("--plant", choices=("linear", "nonlinear", "both"), default="both",
+                        help="which plant(s) to run (default both)")
+    parser.add_argument("--duration", type=float, default=20.0, metavar="S",
+                        help="length of each run [s] (default 20)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_plant_arguments(parser)
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo reproduce``."""
-    out: Path = args.out
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {str(out)!r} exists and is not a directory")
+    params = params_from_args(args)
+    cfg = StudyConfig(params=params, set_name=args.param_set, duration=args.duration)
+    plants = PLANTS if args.plant == "both" else (args.plant,)
+    total = len(plants) * (3 + (4 if args.retune else 0)) + 2
+    quiet = args.quiet
+    bar = tqdm(total=total, desc="reproduce", unit="stage", file=sys.stderr,
+               disable=quiet, mininterval=0.0 if os.environ.get("CI") else 0.1)
+
+    def progress(stage: str) -> None:
+        bar.set_postfix_str(stage, refresh=False)
+        bar.update(3 if "reused" in stage else 1)
+
+    meta = {
+        "fuzzyservo": __version__,
+        "generated": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "parameter set": args.param_set + (" with " + ", ".join(args.param_overrides)
+                                           if args.param_overrides else ""),
+        "gains": "re-tuned in this run" if args.retune else
+                 str(args.gains_dir or "committed tuned gains (fuzzyservo/data/gains)"),
+        "plants": ", ".join(plants),
+    }
+    t0 = time.perf_counter()
     try:
-        written = fig3(du_system(), alpha_system(), out)
-    except OSError as exc:
-        raise InputError(f"cannot write into {str(out)!r}: {exc.strerror or exc}") from exc
-    for path in written:
-        print(path)
+        paths = reproduce(args.out, cfg, gains_dir=args.gains_dir, retune_gains=args.retune,
+                          force=args.force, plants=plants, version=__version__,
+                          progress=progress, meta=meta)
+    finally:
+        bar.close()
+    print(f"reproduced in {time.perf_counter() - t0:.1f} s")
+    for name, path in paths.items():
+        print(f"{name}: {path}")
     return 0

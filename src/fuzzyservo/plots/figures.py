@@ -131,8 +131,9 @@ def render_surface(data: SurfaceData) -> Figure:
     return fig
 
 
-def fig3(du: MamdaniSystem, alpha: MamdaniSystem, out_dir: Path, n: int = 81) -> list[Path]:
-    """Write the paper's Fig. 3 as PNGs: MFs of both systems and both control surfaces.
+def fig3(du: MamdaniSystem, alpha: MamdaniSystem, out_dir: Path, n: int = 81,
+         formats: tuple[str, ...] = ("png",)) -> list[Path]:
+    """Write the paper's Fig. 3: MFs of both systems and both control surfaces.
 
     Parameters
     ----------
@@ -142,6 +143,8 @@ def fig3(du: MamdaniSystem, alpha: MamdaniSystem, out_dir: Path, n: int = 81) ->
         Output directory (created if missing).
     n : int
         Grid points per input of the surfaces.
+    formats : tuple of str
+        File formats to write, e.g. ``("png", "svg")``.
 
     Returns
     -------
@@ -161,7 +164,8 @@ def fig3(du: MamdaniSystem, alpha: MamdaniSystem, out_dir: Path, n: int = 81) ->
     ]
     written = []
     for name, fig in jobs:
-        path = out_dir / name
-        fig.savefig(path, dpi=120)
-        written.append(path)
+        for fmt in formats:
+            path = (out_dir / name).with_suffix(f".{fmt}")
+            fig.savefig(path, dpi=120)
+            written.append(path)
     return written

@@ -39,6 +39,7 @@ CONTROLLER_COLOURS: dict[str, str] = {
     "pid2_tuned": "#9467bd",    # purple
     "fpi": "#2ca02c",           # green
     "stfpi": "#1f77b4",         # blue
+    "stfpi_10": "#e377c2",      # pink
     "stfpi_delay": "#17becf",   # cyan
 }
 
@@ -70,15 +71,29 @@ def _new(title: str, ylabel: str, *, height: float = 4.2) -> tuple[Figure, Axes]
     return fig, ax
 
 
-def step_figure(curves: Sequence[Curve], title: str, *, y0: float = 0.0) -> Figure:
-    """Position response of each controller [mm from the start position] with the reference."""
-    fig, ax = _new(title, "piston position x - x(0) [mm]")
+def step_figure(curves: Sequence[Curve], title: str, *, y0: float = 0.0,
+                zoom: float | None = 4.0) -> Figure:
+    """Position response of each controller [mm from the start position] with the reference.
+
+    With ``zoom`` a second panel shows the first ``zoom`` seconds.
+    """
+    ncols = 1 if zoom is None or zoom >= float(curves[0].t[-1]) else 2
+    fig, axes = plt.subplots(1, ncols, figsize=(8.0 if ncols == 1 else 12.0, 4.4), dpi=110,
+                             squeeze=False)
     ref = curves[0]
-    ax.plot(ref.t, (ref.r - y0) * 1e3, color="black", lw=1.0, ls="--", label="reference")
-    for c in curves:
-        ax.plot(c.t, (c.y - y0) * 1e3, color=_colour(c.key), lw=1.6, ls=c.linestyle,
-                label=c.label)
-    ax.legend(loc="lower right", fontsize=8)
+    for i, ax in enumerate(axes[0]):
+        ax.plot(ref.t, (ref.r - y0) * 1e3, color="black", lw=1.0, ls="--", label="reference")
+        for c in curves:
+            ax.plot(c.t, (c.y - y0) * 1e3, color=_colour(c.key), lw=1.6, ls=c.linestyle,
+                    label=c.label)
+        ax.set_xlabel("time t [s]")
+        ax.set_ylabel("piston position x - x(0) [mm]")
+        ax.grid(True, alpha=0.3)
+        if i == 1 and zoom is not None:
+            ax.set_xlim(0.0, zoom)
+            ax.set_title(f"first {zoom:g} s")
+    axes[0][0].legend(loc="lower right", fontsize=8)
+    fig.suptitle(title)
     fig.tight_layout()
     return fig
 

@@ -114,6 +114,8 @@ def evaluate_claims(
     delay: float,
     delay_margins: Mapping[str, float],
     variants: Mapping[str, Mapping[str, Metrics]],
+    stfpi_equal: str | None = None,
+    delay_failures: Mapping[str, Sequence[float]] | None = None,
 ) -> list[Claim]:
     """Give every claim C1-C8 a verdict for one plant.
 
@@ -142,6 +144,12 @@ def evaluate_claims(
         (settles, overshoot <= 10 %).
     variants : mapping
         Variant name (e.g. "load mass x2") -> controller key -> metrics, gains fixed.
+    delay_failures : mapping, optional
+        Controller key -> every delay [s] of the sweep at which it fails (the sweep need not
+        fail monotonically: a limit cycle can appear at one delay and not at a larger one).
+    stfpi_equal : str, optional
+        Key of a self-tuning fuzzy PI tuned under the PIDs' constraint, reported beside C1
+        and C2 as context (it does not change their verdicts).
     """
     st = metrics[stfpi]
     rows: list[Claim] = []
@@ -151,8 +159,12 @@ def evaluate_claims(
 
     # C1
     os_ = st["overshoot"]
-    add("C1", HOLDS if os_ <= NO_OVERSHOOT_PCT else NOT_HOLDS,
-        f"overshoot {_f(os_, ' %')} (no overshoot read as <= {NO_OVERSHOOT_PCT} %)")
+    ev1 = f"overshoot {_f(os_, ' %')} (no overshoot read as <= {NO_OVERSHOOT_PCT} %)"
+    if stfpi_equal is not None:
+        eq = metrics[stfpi_equal]
+        ev1 += (f"; {labels[stfpi_equal]}: overshoot {_f(eq['overshoot'], ' %')}, "
+                f"rise {_f(eq['rise_time'], ' s')}, settle {_f(eq['settling_time'], ' s')}")
+    add("C1", HOLDS if os_ <= NO_OVERSHOOT_PCT else NOT_HOLDS, ev1)
 
     # C2
     pids = list(paper_pids) + list(tuned_pids)
@@ -197,9 +209,15 @@ def evaluate_claims(
     d_os = delayed["overshoot"]
     d_ts = delayed["settling_time"]
     ok = (d_os <= 10.0) and not math.isnan(d_ts)
+    def fails(k: str) -> str:
+        if delay_failures is None or not delay_failures.get(k):
+            return ""
+        ms = ", ".join(f"{d * 1e3:.3g}" for d in delay_failures[k])
+        return f" (fails at {ms} ms)"
+
     margins = "; ".join(
         f"{labels[k]} " + ("fails already without delay" if math.isnan(v)
-                           else f"still settles at {v * 1e3:.3g} ms, fails beyond")
+                           else f"settles up to {v * 1e3:.3g} ms") + fails(k)
         for k, v in delay_margins.items())
     ev6 = (f"with {delay * 1e3:.3g} ms delay: overshoot {_f(d_os, ' %')}, settle "
            f"{_f(d_ts, ' s')} (without: {_f(st['overshoot'], ' %')}, "
