@@ -130,10 +130,13 @@ class LinearPlant:
         f = delay - d * ts
         if f < 1e-9 * ts:
             f = 0.0
-        phi, _ = _zoh(self.a, self.b, ts)
         phi_hf, g0 = _zoh(self.a, self.b, ts - f)
-        _, gf = _zoh(self.a, self.b, f)
-        g1 = phi_hf @ gf
+        if f > 0.0:
+            phi_f, gf = _zoh(self.a, self.b, f)
+            phi = phi_hf @ phi_f
+            g1 = phi_hf @ gf
+        else:
+            phi, g1 = phi_hf, np.zeros(n)
         return np.concatenate([[n, d], phi.ravel(), g0, g1, self.c])
 
 
