@@ -136,10 +136,15 @@ def test_toml_round_trip(tmp_path: Path, tuned_stfpi: TunedGains) -> None:
 def test_committed_gain_files_load() -> None:
     root = Path(__file__).resolve().parents[2] / "src" / "fuzzyservo" / "data" / "gains"
     files = sorted(root.glob("*.toml"))
+    assert len(files) == 12  # 6 designs of the paper study (study.runner.GAIN_FILES) x 2 plants
     for f in files:
         t = read_gains_toml(f)
-        assert f.stem == f"{t.setup.plant}-{t.controller}"
-        assert t.setup.objective == "itae" and t.setup.constraints.max_overshoot == 10.0
+        design = "-os0" if f.stem.endswith("-os0") else ""
+        assert f.stem == f"{t.setup.plant}-{t.controller}{design}"
+        # "-os0": tuned for the paper's "no overshoot" (<= 0.5 %); the rest like its PID
+        limit = 0.5 if design else 10.0
+        assert t.setup.objective == "itae" and t.setup.constraints.max_overshoot == limit
+        assert t.feasible and t.metrics["overshoot"] <= limit + 1e-9
 
 
 @pytest.mark.parametrize(
