@@ -187,9 +187,9 @@ def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -
     if area <= 0.0:
         return lims[7]
     lo = lims[4]
-    d = (lims[5] - lo) / (n_out - 1)
-    # centroid = sum(p_j A_j + d M_j) / sum(A_j), p_j = lo + j d (the factor d of dy cancels)
-    return lo + d * (parea + moment) / area
+    # centroid = sum(p_j A_j + d M_j) / sum(A_j), p_j = lo + j d, d = (hi - lo) / (n_out - 1)
+    # (the factor d of dy cancels)
+    return lo + (lims[5] - lo) * (parea + moment) / (area * (n_out - 1))
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
