@@ -198,3 +198,20 @@ def test_bad_run_parameters_raise(servo: LinearServo, kw: dict[str, float], matc
                                   ) -> None:
     with pytest.raises(ParameterError, match=match):
         simulate(p_controller(dt=H, kp=1.0), LinearPlant.from_servo(servo), Step(0.1), **kw)
+
+
+@pytest.mark.parametrize("h", [1e-4, 1e-3, 3.7e-3, 1e-2])
+def test_matrix_exponential_matches_scipy(servo: LinearServo, h: float) -> None:
+    from scipy.linalg import expm
+
+    from fuzzyservo.sim.closed_loop import expm_pade13
+
+    a, b, _, _ = servo.state_space()
+    n = a.shape[0]
+    m = np.zeros((n + 1, n + 1))
+    m[:n, :n], m[:n, n] = a * h, b[:, 0] * h
+    mats = [m, *np.random.default_rng(4).normal(scale=3.0, size=(3, 6, 6))]
+    for mat in mats:
+        ref = expm(mat)
+        # same algorithm family (Higham 2005); differences are rounding
+        assert np.max(np.abs(expm_pade13(mat) - ref)) <= 1e-13 * np.max(np.abs(ref))
