@@ -94,3 +94,28 @@ def test_batch_flags_the_first_non_finite_point() -> None:
     assert math.isnan(out[2])
     assert eval_uniform_batch(x1[:2], x2[:2], rules, lims, out[:2]) == -1
     assert eval_uniform_batch(x1[3:], x2[3:], rules, lims, out[3:]) == 0
+
+
+def test_pair_equals_two_single_evaluations() -> None:
+    """The self-tuning controller's shared-fuzzification path is the same maths, bit for bit."""
+    import numpy as np
+
+    from fuzzyservo.fuzzy.kernels import eval_uniform_grid, eval_uniform_pair
+    from fuzzyservo.paper import alpha_system, du_system
+
+    du = du_system().uniform_kernel_args()
+    al = alpha_system().uniform_kernel_args()
+    # a 5 x 4 grid on other universes: the pair must locate the inputs separately
+    other_rules = np.array([[0, 1, 2, 3, 4], [1, 2, 3, 4, 4], [2, 3, 4, 4, 4],
+                            [-1, 0, 1, 2, 3]], dtype=np.int64)
+    other_lims = np.array([-2.0, 2.0, -0.5, 0.5, 0.0, 10.0, 5.0, 0.0])
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-1.3, 1.3, size=(5000, 2))
+    pts = np.vstack([pts, [[np.nan, 0.0], [1.0, 1.0], [-1.0, -1.0], [0.0, 0.0]]])
+    for (ra, la), (rb, lb) in (((du[0], du[1]), (al[0], al[1])),
+                               ((du[0], du[1]), (other_rules, other_lims))):
+        for x1, x2 in pts:
+            ya, yb = eval_uniform_pair(x1, x2, ra, la, rb, lb)
+            ea, eb = eval_uniform_grid(x1, x2, ra, la), eval_uniform_grid(x1, x2, rb, lb)
+            assert (ya == ea or (np.isnan(ya) and np.isnan(ea)))
+            assert (yb == eb or (np.isnan(yb) and np.isnan(eb)))

@@ -28,7 +28,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
-from ..fuzzy.kernels import eval_uniform_grid
+from ..fuzzy.kernels import eval_uniform_grid, eval_uniform_pair
 
 __all__ = [
     "FUZZY_GAIN_NAMES",
@@ -77,10 +77,11 @@ def fuzzy_pi_step(
     de = (e - e_prev) * p[_DESCALE]
     en = p[_KE] * e
     den = p[_KDE] * de
-    dun = eval_uniform_grid(en, den, du_rules, du_lims)
-    alpha = 1.0
     if p[_ST] == 1.0:
-        alpha = eval_uniform_grid(en, den, a_rules, a_lims)
+        dun, alpha = eval_uniform_pair(en, den, du_rules, du_lims, a_rules, a_lims)
+    else:
+        dun = eval_uniform_grid(en, den, du_rules, du_lims)
+        alpha = 1.0
     u = s[_UPREV] + alpha * p[_KDU] * dun
     u = min(max(u, p[_UMIN]), p[_UMAX])
     s[_UPREV] = u

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .kernels import eval_uniform_batch, eval_uniform_grid
+from .kernels import eval_uniform_batch, eval_uniform_grid, eval_uniform_pair
 from .mamdani import MamdaniSpec, MamdaniSystem
 from .membership import (
     Bell,
@@ -36,6 +36,7 @@ __all__ = [
     "Triangle",
     "eval_uniform_batch",
     "eval_uniform_grid",
+    "eval_uniform_pair",
     "gauss",
     "gbell",
     "shoulder_left",

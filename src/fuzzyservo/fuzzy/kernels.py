@@ -42,6 +42,7 @@ __all__ = [
     "eval_uniform_batch",
     "eval_uniform_checked",
     "eval_uniform_grid",
+    "eval_uniform_pair",
     "segment_integrals",
 ]
 
@@ -86,31 +87,10 @@ def _height(
     )
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -> float:
-    """Crisp output of a two-input min/min/max/centroid system on uniform triangles.
-
-    Parameters
-    ----------
-    x1 : float
-        First input (e, selects the column of ``rules``); clipped to ``[lims[0], lims[1]]``.
-    x2 : float
-        Second input (Δe, selects the row of ``rules``); clipped to ``[lims[2], lims[3]]``.
-    rules : int64[:, :]
-        ``rules[i2, i1]`` = output label index, or -1 for no rule; at least 2 x 2.
-    lims : float64[8]
-        lo1, hi1, lo2, hi2, output lo, output hi, number of output labels (>= 2), default.
-
-    Returns
-    -------
-    float
-        Exact centroid of the aggregated output over the output universe; ``lims[7]`` when no
-        rule fires; NaN when an input is NaN.
-    """
-    if x1 != x1 or x2 != x2:
-        return np.nan
-    n2 = rules.shape[0]
-    n1 = rules.shape[1]
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _cell(x1: float, x2: float, n1: int, n2: int, lims: FloatArray
+          ) -> tuple[int, int, float, float]:
+    """Clip the inputs and locate them: grid cell (k1, k2) and fractions (f1, f2) in it."""
     lo1 = lims[0]
     hi1 = lims[1]
     lo2 = lims[2]
@@ -131,8 +111,13 @@ def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -
     k2 = int(t2)
     if k2 > n2 - 2:
         k2 = n2 - 2
-    f1 = t1 - k1
-    f2 = t2 - k2
+    return k1, k2, t1 - k1, t2 - k2
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _centroid(k1: int, k2: int, f1: float, f2: float, rules: IntArray,
+              lims: FloatArray) -> float:
+    """Exact centroid of the aggregate of the (at most) four rules of cell (k1, k2)."""
     g1 = 1.0 - f1
     g2 = 1.0 - f2
     # the (at most) four rules that fire, with their min-AND strengths
@@ -190,6 +175,55 @@ def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -
     # centroid = sum(p_j A_j + d M_j) / sum(A_j), p_j = lo + j d, d = (hi - lo) / (n_out - 1)
     # (the factor d of dy cancels)
     return lo + (lims[5] - lo) * (parea + moment) / (area * (n_out - 1))
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -> float:
+    """Crisp output of a two-input min/min/max/centroid system on uniform triangles.
+
+    Parameters
+    ----------
+    x1 : float
+        First input (e, selects the column of ``rules``); clipped to ``[lims[0], lims[1]]``.
+    x2 : float
+        Second input (Δe, selects the row of ``rules``); clipped to ``[lims[2], lims[3]]``.
+    rules : int64[:, :]
+        ``rules[i2, i1]`` = output label index, or -1 for no rule; at least 2 x 2.
+    lims : float64[8]
+        lo1, hi1, lo2, hi2, output lo, output hi, number of output labels (>= 2), default.
+
+    Returns
+    -------
+    float
+        Exact centroid of the aggregated output over the output universe; ``lims[7]`` when no
+        rule fires; NaN when an input is NaN.
+    """
+    if x1 != x1 or x2 != x2:
+        return np.nan
+    k1, k2, f1, f2 = _cell(x1, x2, rules.shape[1], rules.shape[0], lims)
+    return _centroid(k1, k2, f1, f2, rules, lims)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def eval_uniform_pair(x1: float, x2: float, rules_a: IntArray, lims_a: FloatArray,
+                      rules_b: IntArray, lims_b: FloatArray) -> tuple[float, float]:
+    """Two systems on the same inputs, e.g. Δu and α of the self-tuning controller.
+
+    Equal to ``(eval_uniform_grid(x1, x2, rules_a, lims_a), eval_uniform_grid(x1, x2,
+    rules_b, lims_b))``; when both systems partition the same input universes into the same
+    grid (as the paper's two do) the inputs are located once and only the rule look-ups and
+    the output integration are done twice.
+    """
+    if x1 != x1 or x2 != x2:
+        return np.nan, np.nan
+    k1, k2, f1, f2 = _cell(x1, x2, rules_a.shape[1], rules_a.shape[0], lims_a)
+    ya = _centroid(k1, k2, f1, f2, rules_a, lims_a)
+    if (rules_b.shape[0] == rules_a.shape[0] and rules_b.shape[1] == rules_a.shape[1]
+            and lims_b[0] == lims_a[0] and lims_b[1] == lims_a[1]
+            and lims_b[2] == lims_a[2] and lims_b[3] == lims_a[3]):
+        return ya, _centroid(k1, k2, f1, f2, rules_b, lims_b)
+    k1, k2, f1, f2 = _cell(x1, x2, rules_b.shape[1], rules_b.shape[0], lims_b)
+    return ya, _centroid(k1, k2, f1, f2, rules_b, lims_b)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
