@@ -55,8 +55,8 @@ from .._typing import FloatArray
 from ..control import FuzzyPIController, PIDController, SelfTuningFuzzyPIController
 from ..control.fuzzy_pi import KernelSystem
 from ..errors import InputError, ParameterError
-from ..plant import LinearServo, ServoParams, linearize
-from ..sim import LinearPlant, NonlinearPlant, Step, simulate_batch
+from ..plant import ServoParams
+from ..sim import LinearPlant, NonlinearPlant, Step, make_plant, simulate_batch
 from ..sim.stepinfo import METRIC_NAMES
 from .tuning import (
     OBJECTIVES,
@@ -247,10 +247,7 @@ def _gain_dict(setup: TuningSetup, searched: FloatArray) -> dict[str, float]:
 
 
 def _plant(setup: TuningSetup, params: ServoParams) -> LinearPlant | NonlinearPlant:
-    pos = setup.start * params.cylinder.stroke
-    if setup.plant == "linear":
-        return LinearPlant.from_servo(LinearServo.from_params(params, linearize(params, pos)))
-    return NonlinearPlant.from_params(params, pos)
+    return make_plant(setup.plant, params, setup.start * params.cylinder.stroke)
 
 
 def _template(setup: TuningSetup, kind: str, du_system: KernelSystem | None,

@@ -21,8 +21,7 @@ from ..analysis.step_metrics import step_metrics
 from ..control import FuzzyPIController, PIDController, SelfTuningFuzzyPIController
 from ..errors import InputError, ParameterError
 from ..paper import alpha_system, du_system
-from ..plant import LinearServo, linearize
-from ..sim import LinearPlant, NonlinearPlant, parse_reference, simulate
+from ..sim import make_plant, parse_reference, simulate
 from ._plantargs import params_from_args
 from .metrics import UNITS
 
@@ -133,11 +132,7 @@ def run_closed_loop(args: argparse.Namespace) -> int:
                              f"got {args.start!r}")
     params = params_from_args(args)
     position = args.start * params.cylinder.stroke
-    if args.plant == "linear":
-        plant: Any = LinearPlant.from_servo(
-            LinearServo.from_params(params, linearize(params, position)))
-    else:
-        plant = NonlinearPlant.from_params(params, position)
+    plant = make_plant(args.plant, params, position)
     res = simulate(ctl, plant, reference, duration=args.duration, delay=args.delay,
                    noise_std=args.noise_std, rng=np.random.default_rng(args.seed))
     try:

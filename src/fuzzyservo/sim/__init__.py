@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .batch import simulate_batch
-from .closed_loop import LinearPlant, NonlinearPlant, Plant, simulate
+from .closed_loop import PLANT_KINDS, LinearPlant, NonlinearPlant, Plant, make_plant, simulate
 from .open_loop import OpenLoopResult, command_samples, simulate_open_loop
 from .references import (
     MultiStep,
@@ -24,6 +24,7 @@ __all__ = [
     "N_METRICS",
     "BatchResult",
     "LinearPlant",
+    "PLANT_KINDS",
     "MultiStep",
     "NonlinearPlant",
     "OpenLoopResult",
@@ -38,6 +39,7 @@ __all__ = [
     "command_samples",
     "parse_reference",
     "sample_reference",
+    "make_plant",
     "simulate",
     "simulate_batch",
     "simulate_open_loop",

@@ -46,11 +46,13 @@ from .references import Reference, sample_reference
 from .result import SimResult
 
 __all__ = [
+    "PLANT_KINDS",
     "LinearPlant",
     "NonlinearPlant",
     "Plant",
     "run_linear",
     "run_nonlinear",
+    "make_plant",
     "simulate",
     "time_grid",
 ]
@@ -284,6 +286,25 @@ class NonlinearPlant:
 
 
 Plant = LinearPlant | NonlinearPlant
+
+#: Plant kinds :func:`make_plant` builds.
+PLANT_KINDS: tuple[str, ...] = ("linear", "nonlinear")
+
+
+def make_plant(kind: str, params: Any, position: float | None = None) -> Plant:
+    """The plant of a parameter set, at rest at ``position`` [m] (default mid-stroke).
+
+    ``"linear"`` is eq. (8) with the K_o, ω₀ and δ ``fuzzyservo linearize`` reports at that
+    position; ``"nonlinear"`` is the two-chamber model started at its trim equilibrium.
+    """
+    from ..plant import LinearServo, linearize
+
+    pos = 0.5 * params.cylinder.stroke if position is None else float(position)
+    if kind == "linear":
+        return LinearPlant.from_servo(LinearServo.from_params(params, linearize(params, pos)))
+    if kind == "nonlinear":
+        return NonlinearPlant.from_params(params, pos)
+    raise ParameterError(f"unknown plant {kind!r}; allowed: {', '.join(PLANT_KINDS)}")
 
 
 @numba.njit(cache=True, nogil=True)

@@ -28,8 +28,8 @@ from ..analysis.step_metrics import step_metrics
 from ..control import FuzzyPIController, PIDController, SelfTuningFuzzyPIController
 from ..errors import ParameterError
 from ..paper import alpha_system, du_system
-from ..plant import LinearServo, ServoParams, linearize, with_overrides
-from ..sim import LinearPlant, NonlinearPlant, SimResult, simulate
+from ..plant import ServoParams, with_overrides
+from ..sim import LinearPlant, NonlinearPlant, SimResult, make_plant, simulate
 from ..sim.batch import simulate_batch
 from ..sim.references import Step
 from .claims import Claim, evaluate_claims
@@ -167,13 +167,7 @@ def build_controller(case: ControllerCase, ts: float) -> Any:
 
 def build_plant(kind: str, params: ServoParams) -> LinearPlant | NonlinearPlant:
     """The linear (eq. 8 at mid-stroke) or nonlinear plant, at rest at mid-stroke."""
-    position = 0.5 * params.cylinder.stroke
-    if kind == "linear":
-        return LinearPlant.from_servo(LinearServo.from_params(params,
-                                                              linearize(params, position)))
-    if kind == "nonlinear":
-        return NonlinearPlant.from_params(params, position)
-    raise ParameterError(f"unknown plant {kind!r}; allowed: linear, nonlinear")
+    return make_plant(kind, params)
 
 
 def variants(kind: str, params: ServoParams) -> dict[str, ServoParams]:
