@@ -96,7 +96,7 @@ def test_unknown_system_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> 
 
 def test_reproduce_writes_fig3(tmp_path: Path) -> None:
     out = tmp_path / "results"
-    assert main(["reproduce", "--out", str(out), "--plant", "linear", "--duration", "2",
+    assert main(["reproduce", "--out", str(out), "--plant", "linear", "--duration", "5",
                  "--quiet"]) == 0
     for stem in ("fig3a_memberships", "fig3a_surface_du", "fig3b_memberships",
                  "fig3b_surface_alpha"):

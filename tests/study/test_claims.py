@@ -103,3 +103,23 @@ def test_changed_plant_claim(os_: float, verdict: str) -> None:
     changed = {k: dict(v) for k, v in m.items()}
     changed["stfpi"]["overshoot"] = os_
     assert _claims(m, variants={"mass x2": changed})["C8"] == verdict
+
+
+def test_c1_is_partial_when_no_overshoot_comes_from_the_tuning_constraint() -> None:
+    m = _base()
+    m["stfpi_10"] = _m(os_=9.0, tr=0.8, ts=2.5)
+    labels = {k: k for k in m}
+    t = np.linspace(0.0, 10.0, 101)
+
+    def c1(limit: float | None) -> str:
+        rows = evaluate_claims(
+            "linear", m, labels, stfpi="stfpi", fpi="fpi", paper_pids=KEYS[:2],
+            tuned_pids=KEYS[2:4], alpha_trace=(t, np.full_like(t, 0.2)), delayed=m["stfpi"],
+            delay=0.006, delay_margins={k: 0.05 for k in KEYS}, variants={"x": m},
+            stfpi_equal="stfpi_10", stfpi_overshoot_limit=limit)
+        return rows[0].verdict
+
+    assert c1(0.5) == PARTLY  # tuned for no overshoot; tuned like the PIDs it overshoots
+    assert c1(10.0) == HOLDS  # no overshoot although 10 % was allowed
+    m["stfpi_10"]["overshoot"] = 0.2
+    assert c1(0.5) == HOLDS

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -67,17 +68,25 @@ def test_report_numbers_equal_simulate_metrics(linear_run: Path, tmp_path: Path,
     gains = row["gains"].replace(" = ", "=").replace(", ", ",")
     capsys.readouterr()
     assert main(["simulate", "--plant", "linear", "--controller", "stfpi", "--gains", gains,
-                 "--reference", "step:0.1", "--duration", "6", "--ts", "0.001",
+                 "--reference", "step:0.1", "--duration", "6", "--ts", "0.001", "--delay", "0",
                  "--out", str(tmp_path / "run.csv"), "--metrics"]) == 0
     printed = {}
     for line in capsys.readouterr().out.splitlines():
         parts = line.split()
         if len(parts) >= 2:
             printed[parts[0]] = float(parts[1])
-    for col in ("rise_time", "settling_time", "overshoot", "iae", "itae", "u_max"):
+    html = (linear_run / "report.html").read_text()
+    start = html.index("Results on the linear plant")
+    row_start = html.index(f"<td>{row['label']}</td>", start)
+    cells = re.findall(r'<td class="num">([^<]*)</td>',
+                       html[row_start:html.index("</tr>", row_start)])
+    for i, col in enumerate(("rise_time", "settling_time", "overshoot", "steady_state_error",
+                             "iae", "itae", "u_max")):
         key = next(k for k in row if k.startswith(col + " "))
         # the same run through the same code; simulate prints 6 significant digits
         assert float(row[key]) == pytest.approx(printed[col], rel=5e-6, abs=1e-12), col
+        # the report shows 4 significant digits of the same number
+        assert float(cells[i]) == pytest.approx(printed[col], rel=6e-4, abs=1e-12), col
 
 
 def test_changing_a_gain_changes_verdicts_or_evidence() -> None:

@@ -183,6 +183,8 @@ class TuningSetup:
         if self.duration < 10.0 * self.ts:
             raise ParameterError(f"TuningSetup.duration {self.duration!r} s must span at least "
                                  f"10 samples of ts = {self.ts!r} s")
+        if not (isinstance(self.seed, int) and self.seed >= 0):
+            raise ParameterError(f"seed must be a non-negative integer, got {self.seed!r}")
         if self.popsize < 2 or self.maxiter < 1:
             raise ParameterError(f"need popsize >= 2 and maxiter >= 1, got {self.popsize}, "
                                  f"{self.maxiter}")

@@ -55,8 +55,9 @@ def add_closed_loop_arguments(parser: argparse.ArgumentParser) -> None:
                    help="reference offset from the start position [m]: step:A[:T], "
                         "multistep:T1=A1,..., ramp:SLOPE[:T[:FINAL]], sine:A:F, "
                         "trapezoid:DIST:VMAX:AMAX[:T] (default step:0.1)")
-    g.add_argument("--delay", type=float, default=0.0, metavar="S",
-                   help="transport delay on the command [s] (default 0)")
+    g.add_argument("--delay", type=float, default=None, metavar="S",
+                   help="transport (hose) delay on the command [s] (default: the parameter "
+                        "set's delay.transport_delay, 6 ms for the paper set; 0 for none)")
     g.add_argument("--metrics", action="store_true", help="print the step metrics")
     g.add_argument("--noise-std", type=float, default=0.0, metavar="M",
                    help="measurement noise standard deviation [m] (default 0)")
@@ -81,6 +82,8 @@ def parse_gains(text: str, controller: str) -> dict[str, float]:
         name = name.strip().lower()
         if not sep:
             raise ParameterError(f"--gains expects NAME=VALUE, got {item!r}")
+        if name in gains:
+            raise ParameterError(f"gain {name} is given twice in --gains; give each once")
         if name not in allowed:
             raise ParameterError(
                 f"unknown gain {name!r} for controller {controller}; allowed: "
@@ -133,7 +136,10 @@ def run_closed_loop(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     position = args.start * params.cylinder.stroke
     plant = make_plant(args.plant, params, position)
-    res = simulate(ctl, plant, reference, duration=args.duration, delay=args.delay,
+    if args.seed < 0:
+        raise ParameterError(f"--seed must be a non-negative integer, got {args.seed}")
+    delay = params.delay.transport_delay if args.delay is None else args.delay
+    res = simulate(ctl, plant, reference, duration=args.duration, delay=delay,
                    noise_std=args.noise_std, rng=np.random.default_rng(args.seed))
     try:
         res.to_csv(args.out)

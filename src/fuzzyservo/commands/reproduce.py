@@ -19,11 +19,16 @@ from typing import Any
 from tqdm import tqdm
 
 from .. import __version__
+from ..errors import InputError, ParameterError
 from ..study.paper_study import StudyConfig
 from ..study.runner import PLANTS, reproduce
 from ._plantargs import add_plant_arguments, params_from_args
 
-__all__ = ["register", "run"]
+__all__ = ["MIN_DURATION", "register", "run"]
+
+#: Shortest run the study accepts [s]: the tuned controllers settle in about 2-3 s, and C4
+#: looks at the last quarter of the run, so shorter runs would judge unsettled responses.
+MIN_DURATION = 5.0
 
 
 def register(subparsers: Any) -> None:
@@ -47,7 +52,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--plant", choices=("linear", "nonlinear", "both"), default="both",
                         help="which plant(s) to run (default both)")
     parser.add_argument("--duration", type=float, default=20.0, metavar="S",
-                        help="length of each run [s] (default 20)")
+                        help="length of each run [s], at least 5 (default 20)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_plant_arguments(parser)
     parser.set_defaults(handler=run)
@@ -55,6 +60,10 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo reproduce``."""
+    if not args.duration >= MIN_DURATION:
+        raise ParameterError(
+            f"--duration must be at least {MIN_DURATION:g} s so that the claims can be judged "
+            f"on settled responses, got {args.duration!r}")
     params = params_from_args(args)
     cfg = StudyConfig(params=params, set_name=args.param_set, duration=args.duration)
     plants = PLANTS if args.plant == "both" else (args.plant,)
@@ -81,6 +90,9 @@ def run(args: argparse.Namespace) -> int:
         paths = reproduce(args.out, cfg, gains_dir=args.gains_dir, retune_gains=args.retune,
                           force=args.force, plants=plants, version=__version__,
                           progress=progress, meta=meta)
+    except OSError as exc:
+        raise InputError(f"cannot write into {str(args.out)!r}: "
+                         f"{exc.strerror or exc}") from exc
     finally:
         bar.close()
     print(f"reproduced in {time.perf_counter() - t0:.1f} s")

@@ -168,4 +168,8 @@ def run(args: argparse.Namespace) -> int:
           f"rise_time={m['rise_time']:.4g} s, settling_time={m['settling_time']:.4g} s, "
           f"u_max={m['u_max']:.3g}, feasible={'yes' if tuned.feasible else 'no'}, "
           f"{tuned.n_evaluations} runs in {tuned.elapsed:.1f} s -> {out}")
+    if not tuned.feasible:
+        print(f"fuzzyservo: no gains found that meet the constraints; the best found are "
+              f"written to {out} (loosen a constraint or widen the search)", file=sys.stderr)
+        return 1
     return 0

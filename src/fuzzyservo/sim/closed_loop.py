@@ -46,6 +46,7 @@ from .references import Reference, sample_reference
 from .result import SimResult
 
 __all__ = [
+    "MAX_SAMPLES",
     "PLANT_KINDS",
     "LinearPlant",
     "NonlinearPlant",
@@ -438,14 +439,25 @@ def run_nonlinear(
     return -1
 
 
+#: Most samples one run may have: 1e7 samples of a few signals is already ~1 GB of results.
+MAX_SAMPLES = 10_000_000
+
+
 def time_grid(duration: float, ts: float) -> FloatArray:
-    """Sample times 0, ts, ..., up to ``duration`` [s] (validated: ts > 0, duration >= ts)."""
+    """Sample times 0, ts, ..., up to ``duration`` [s].
+
+    Validated: ts > 0, duration >= ts, and at most :data:`MAX_SAMPLES` samples.
+    """
     if not (isinstance(ts, int | float) and math.isfinite(ts) and ts > 0.0):
         raise ParameterError(f"sample time ts must be finite and > 0 s, got {ts!r}")
     if not (math.isfinite(duration) and duration >= ts):
         raise ParameterError(
             f"duration must be finite and at least one sample ({ts!r} s), got {duration!r}")
     n = int(math.floor(duration / ts + 1e-9)) + 1
+    if n > MAX_SAMPLES:
+        raise ParameterError(
+            f"duration {duration!r} s at sample time {ts!r} s needs {n} samples; at most "
+            f"{MAX_SAMPLES} are allowed (lengthen the sample time or shorten the run)")
     return np.arange(n, dtype=np.float64) * ts
 
 

@@ -61,12 +61,12 @@ def _figures(study: PlantStudy, cfg: StudyConfig, out: Path) -> list[Figure]:
                     f"Fig. 7 ({p} plant): fuzzy PI without and with self-tuning", y0=y0),
         f"fig7_{p}", f"Fig. 7, {p} plant: fuzzy PI (alpha = 1) and self-tuning fuzzy PI.")
     d = study.delayed
-    delayed = Curve("stfpi_delay", f"self-tuning fuzzy PI, {cfg.hose_delay * 1e3:g} ms delay",
+    delayed = Curve("stfpi_delay", f"self-tuning fuzzy PI, {cfg.fig8_delay * 1e3:g} ms delay",
                     d.t, d.y, d.u, d.alpha, d.r, "--")
     put(step_figure([_curve(study, "stfpi", label="self-tuning fuzzy PI, no delay"), delayed],
                     f"Fig. 8 ({p} plant): self-tuning fuzzy PI without and with hose delay",
                     y0=y0),
-        f"fig8_{p}", f"Fig. 8, {p} plant: the {cfg.hose_delay * 1e3:g} ms hose delay.")
+        f"fig8_{p}", f"Fig. 8, {p} plant: the {cfg.fig8_delay * 1e3:g} ms hose delay.")
     labels = {c.key: c.label for c in study.cases}
     put(delay_sweep_figure(study.delays, {k: v["overshoot"] for k, v in study.sweep.items()},
                            labels, f"Delay sweep ({p} plant): overshoot",
@@ -142,7 +142,7 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
     for s in studies:
         rows = [[c.label] + [s.metrics[c.key][n] for n, _ in METRIC_COLUMNS]
                 for c in s.cases]
-        rows.append([f"self-tuning fuzzy PI, {cfg.hose_delay * 1e3:g} ms delay"]
+        rows.append([f"self-tuning fuzzy PI, {cfg.fig8_delay * 1e3:g} ms delay"]
                     + [s.delayed_metrics[n] for n, _ in METRIC_COLUMNS])
         margin_rows = [[c.label, s.delay_margins[c.key] * 1e3 if not
                         math.isnan(s.delay_margins[c.key]) else "fails without delay",

@@ -87,8 +87,9 @@ class StudyConfig:
         Length of each run [s].
     ts : float
         Controller sample time [s].
-    hose_delay : float
-        The paper's hose delay for Fig. 8 [s].
+    hose_delay : float or None
+        Hose delay of Fig. 8 [s]; None takes the parameter set's ``delay.transport_delay``
+        (Table A.1's 6 ms for the paper set).
     delay_sweep : tuple of float
         Delays of the sweep [s].
     pid_filter : float
@@ -100,7 +101,7 @@ class StudyConfig:
     step: float = 0.1
     duration: float = 20.0
     ts: float = 0.001
-    hose_delay: float = 0.006
+    hose_delay: float | None = None
     delay_sweep: tuple[float, ...] = (0.0, 0.006, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.08,
                                       0.1, 0.125, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.8,
                                       1.0)
@@ -114,6 +115,13 @@ class StudyConfig:
         if self.duration < 10 * self.ts:
             raise ParameterError(
                 f"StudyConfig.duration must cover at least 10 samples, got {self.duration!r} s")
+
+    @property
+    def fig8_delay(self) -> float:
+        """The hose delay of Fig. 8 [s]: ``hose_delay``, or the parameter set's."""
+        if self.hose_delay is None:
+            return float(self.params.delay.transport_delay)
+        return float(self.hose_delay)
 
 
 @dataclass(frozen=True, slots=True)
@@ -223,10 +231,13 @@ def _failed(settling: float, diverged: bool) -> bool:
 
 
 def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Mapping[str, float]],
-                    *, tick: Callable[[str], None] | None = None) -> PlantStudy:
+                    *, tick: Callable[[str], None] | None = None,
+                    stfpi_overshoot_limit: float | None = None) -> PlantStudy:
     """Run every experiment of the study on one plant ("linear" or "nonlinear").
 
-    ``tick(stage)`` is called after each stage, for a progress display.
+    ``tick(stage)`` is called after each stage, for a progress display;
+    ``stfpi_overshoot_limit`` [%] is the constraint the self-tuning design was tuned under
+    (it qualifies claim C1).
     """
     def done(stage: str) -> None:
         if tick is not None:
@@ -245,7 +256,7 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Mapping[str
 
     st_case = next(c for c in cases if c.key == "stfpi")
     delayed = simulate(build_controller(st_case, cfg.ts), plant, ref, duration=cfg.duration,
-                       delay=cfg.hose_delay)
+                       delay=cfg.fig8_delay)
     delayed_metrics = metrics_dict(delayed, cfg.step)
 
     delays = np.asarray(cfg.delay_sweep, dtype=np.float64)
@@ -287,8 +298,9 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Mapping[str
         kind, metrics, labels, stfpi="stfpi", fpi="fpi",
         paper_pids=("pid_paper_1", "pid_paper_2"), tuned_pids=("pid_tuned", "pid2_tuned"),
         alpha_trace=(runs["stfpi"].t, runs["stfpi"].alpha), delayed=delayed_metrics,
-        delay=cfg.hose_delay, delay_margins=margins, variants=var_metrics,
-        stfpi_equal="stfpi_10", delay_failures=failures)
+        delay=cfg.fig8_delay, delay_margins=margins, variants=var_metrics,
+        stfpi_equal="stfpi_10", delay_failures=failures,
+        stfpi_overshoot_limit=stfpi_overshoot_limit)
     return PlantStudy(plant=kind, cases=tuple(cases), runs=runs, metrics=metrics,
                       delayed=delayed, delayed_metrics=delayed_metrics, delays=delays,
                       sweep=sweep, delay_margins=margins, delay_failures=failures,

@@ -102,8 +102,7 @@ def _code_digest() -> str:
     return h.hexdigest()
 
 
-def _cache_key(plant: str, cfg: StudyConfig, gains: Mapping[str, Mapping[str, float]],
-               version: str) -> str:
+def _cache_key(plant: str, cfg: StudyConfig, gains: Mapping[str, str], version: str) -> str:
     blob = json.dumps({
         "plant": plant, "version": version, "code": _code_digest(),
         "params": to_dict(cfg.params),
@@ -147,7 +146,7 @@ def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
             tuned = load_tuned(plant, gains_dir or default_gains_dir())
         notes.update(_notes(plant, tuned))
         gains = {name: dict(t.gains) for name, t in tuned.items()}
-        key = _cache_key(plant, cfg, gains, version)
+        key = _cache_key(plant, cfg, {n: repr(t) for n, t in tuned.items()}, version)
         path = cache / f"{plant}-{key}.pkl"
         if path.is_file() and not force:
             with path.open("rb") as fh:
@@ -155,7 +154,9 @@ def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
             if progress is not None:
                 progress(f"{plant}: reused cached results ({path.name})")
         else:
-            study = run_plant_study(plant, cfg, gains, tick=progress)
+            limit = tuned[TUNED_DESIGNS["stfpi"][0]].setup.constraints.max_overshoot
+            study = run_plant_study(plant, cfg, gains, tick=progress,
+                                    stfpi_overshoot_limit=limit)
             tmp = path.with_suffix(".tmp")
             with tmp.open("wb") as fh:
                 pickle.dump(study, fh, protocol=pickle.HIGHEST_PROTOCOL)
