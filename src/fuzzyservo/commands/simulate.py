@@ -2,7 +2,7 @@
 
 Open loop (``--open-loop``): a constant valve command from rest at a stroke position,
 ``fuzzyservo simulate --plant nonlinear|linear --open-loop --command 0.5 --duration 2
---out run.csv``. The CSV has a ``#`` comment line, a header and the columns ``t, u, x, v,
+--out run.csv``. The CSV has a header line and the columns ``t, u, x, v,
 p_f, p_n, spool, spool_rate`` in SI units (u as a fraction of rated input, before the hose
 delay). The closed-loop branch dispatches on ``args.open_loop``.
 """
@@ -36,8 +36,12 @@ def register(subparsers: Any) -> None:
         description="Simulate the servo and write the samples to a CSV file (SI units).",
     )
     parser.add_argument("--plant", choices=("nonlinear", "linear"), default="nonlinear",
-                        help="nonlinear two-chamber model, or its linearisation (default "
-                             "nonlinear)")
+                        help="nonlinear two-chamber model (default) or a linear one. "
+                             "'linear' is two models: with --open-loop the small-signal "
+                             "linearisation around the trim (all states, chamber pressures "
+                             "included; velocity gain 0.2095 m/s per unit command for the paper "
+                             "set), in closed loop eq. (8) with K_o = Q_rated/A_f (0.2619); "
+                             "eq. (8) has no chamber pressures, which the open-loop CSV needs")
     parser.add_argument("--open-loop", action="store_true",
                         help="apply a constant valve command instead of a controller")
     parser.add_argument("--command", type=float, default=None, metavar="U",
@@ -76,15 +80,13 @@ def run_open_loop(args: argparse.Namespace) -> int:
                              f"got {args.start!r}")
     params = params_from_args(args)
     res = simulate_open_loop(params, args.command, duration=args.duration, dt=args.dt,
-                             position=args.start * params.cylinder.stroke, plant=args.plant,
-                             method=args.method)
+                             position=args.start * params.cylinder.stroke, delay=args.delay,
+                             plant=args.plant, method=args.method)
     # u at t_k is the command issued for the interval that starts there (last one repeated)
     u_col = np.append(res.u, res.u[-1])
     cols = [res.t, u_col, res.x, res.v, res.p_f, res.p_n, res.states[:, 1], res.states[:, 2]]
     try:
         with open(args.out, "w", newline="", encoding="utf-8") as fh:
-            fh.write(f"# fuzzyservo simulate --open-loop: plant={res.plant} method={res.method}"
-                     f" set={args.param_set} command={args.command}\n")
             w = csv.writer(fh)
             w.writerow(OPEN_LOOP_COLUMNS)
             for k in range(res.t.shape[0]):

@@ -1,9 +1,10 @@
 """Open-loop simulation of the servo: a compiled fixed-step RK4 path and a solve_ivp reference.
 
 The command is a sequence sampled every ``dt`` and held in between (zero-order hold). The hose
-transport delay shifts it by ``delay.transport_delay``, which must be a whole number of
-samples; before t = 0 the valve sees the holding command of the initial equilibrium, so a run
-starts at rest (:func:`fuzzyservo.plant.trim`).
+transport delay shifts it by ``delay`` (default ``delay.transport_delay`` of the parameter
+set), which must be a whole number of samples; before t = 0 the valve sees the holding command
+of the initial equilibrium, so a run starts at rest (:func:`fuzzyservo.plant.trim`). The
+sample grid and its limits are the closed loop's (:func:`fuzzyservo.sim.closed_loop.time_grid`).
 
 ``plant="nonlinear"`` integrates :func:`fuzzyservo.plant.rhs` (the same njit function the
 closed loop uses); ``plant="linear"`` propagates the small-signal linearisation around the
@@ -26,6 +27,7 @@ from .._typing import ArrayLike, FloatArray
 from ..errors import InputError, ParameterError
 from ..plant import N_STATE, STATE_NAMES, ServoParams, linearize, pack, rhs, trim
 from ..plant.nonlinear import check_finite, rk4_advance_ws
+from .closed_loop import check_delay, time_grid
 
 __all__ = ["OpenLoopResult", "command_samples", "simulate_open_loop"]
 
@@ -107,13 +109,13 @@ def _run_rk4(x0: FloatArray, u_valve: FloatArray, p: FloatArray, dt: float, n_su
     return -1
 
 
-def _delay_samples(params: ServoParams, dt: float) -> int:
-    td = params.delay.transport_delay
+def _delay_samples(td: float, dt: float, what: str) -> int:
+    """The delay ``td`` [s] (named ``what`` in errors) in whole samples of ``dt``."""
     d = round(td / dt)
     if abs(d * dt - td) > 1e-9 * max(dt, td):
         raise ParameterError(
-            f"delay.transport_delay = {td!r} s is not a whole number of samples of dt = "
-            f"{dt!r} s; choose dt dividing the delay"
+            f"{what} = {td!r} s is not a whole number of samples of dt = {dt!r} s; the open "
+            f"loop holds the command per sample, so choose dt dividing the delay"
         )
     return int(d)
 
@@ -125,6 +127,7 @@ def simulate_open_loop(
     duration: float,
     dt: float = 1.0e-3,
     position: float | None = None,
+    delay: float | None = None,
     plant: PlantKind = "nonlinear",
     method: Method = "rk4",
     substep: float = 1.0e-4,
@@ -141,11 +144,16 @@ def simulate_open_loop(
         Valve command, fraction of rated input, held over each sample (see
         :func:`command_samples`) [1].
     duration : float
-        Simulated time [s]; rounded to whole samples.
+        Simulated time [s], at least one sample and at most
+        :data:`fuzzyservo.sim.closed_loop.MAX_SAMPLES` samples; cut to whole samples (the
+        grid of :func:`fuzzyservo.sim.closed_loop.time_grid`).
     dt : float
         Sample time of the command and of the output [s].
     position : float, optional
         Initial piston position inside the stroke [m]; default stroke/2.
+    delay : float, optional
+        Transport delay on the command [s], >= 0 and a whole number of samples; default
+        ``params.delay.transport_delay``.
     plant : {"nonlinear", "linear"}
         Nonlinear model, or its linearisation around the initial equilibrium.
     method : {"rk4", "solve_ivp"}
@@ -165,12 +173,13 @@ def simulate_open_loop(
     Raises
     ------
     ParameterError
-        For a non-positive ``dt``/``duration``/``substep``, an unknown ``plant``/``method``, or
-        a delay that is not a whole number of samples.
+        For a non-positive ``dt``/``substep``, a ``duration`` shorter than one sample or of
+        too many samples, an unknown ``plant``/``method``, or a negative delay or one that is
+        not a whole number of samples.
     SimulationDivergedError
         If the state becomes non-finite (the message names the time and the state).
     """
-    for name, value in (("dt", dt), ("duration", duration), ("substep", substep)):
+    for name, value in (("dt", dt), ("substep", substep)):
         if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
             raise ParameterError(f"{name} must be a finite number > 0 s, got {value!r}")
     if plant not in ("nonlinear", "linear"):
@@ -179,12 +188,15 @@ def simulate_open_loop(
         raise ParameterError(f"method must be 'rk4' or 'solve_ivp', got {method!r}")
     if position is None:
         position = params.cylinder.stroke / 2.0
-    n = max(1, round(duration / dt))
+    t = time_grid(duration, dt)
+    n = t.shape[0] - 1
+    if delay is None:
+        d = _delay_samples(params.delay.transport_delay, dt, "delay.transport_delay")
+    else:
+        d = _delay_samples(check_delay(delay), dt, "delay")
     u_cmd = command_samples(command, n, dt)
     tr = trim(params, position)
-    d = _delay_samples(params, dt)
     u_valve = np.concatenate([np.full(d, tr.command), u_cmd])[:n]
-    t = np.arange(n + 1, dtype=np.float64) * dt
     if plant == "linear":
         states = _run_linear(params, position, u_valve, dt)
         used = "zoh"
