@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed-stamp
 FLVENV := .venv-fuzzylite
 PIP_QUIET := $(if $(CI),-q,)
 
-.PHONY: all reproduce test lint bench clean
+.PHONY: all reproduce test lint bench clean clean-numba
 
 all: test
 
@@ -37,5 +37,10 @@ test: lint
 bench: $(STAMP) $(FLVENV)/.installed-stamp
 	$(BIN)/python benchmarks/run_all.py --fuzzylite-python $(FLVENV)/bin/python
 
-clean:
+# numba's on-disk cache is invalidated by a change of the function's own file only, not of a
+# kernel it calls in another module: clear it after editing a kernel.
+clean-numba:
+	find src -name '*.nbi' -delete -o -name '*.nbc' -delete
+
+clean: clean-numba
 	rm -rf $(VENV) $(FLVENV) build *.egg-info src/*.egg-info .pytest_cache .mypy_cache .ruff_cache

@@ -48,7 +48,7 @@ _NP = 9
 _UPREV, _EPREV, _YF, _STARTED, _ALPHA = range(5)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def fuzzy_pi_step(
     p: FloatArray,
     s: FloatArray,

@@ -204,7 +204,7 @@ def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -
     return _centroid(k1, k2, f1, f2, rules, lims)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def eval_uniform_pair(x1: float, x2: float, rules_a: IntArray, lims_a: FloatArray,
                       rules_b: IntArray, lims_b: FloatArray) -> tuple[float, float]:
     """Two systems on the same inputs, e.g. Δu and α of the self-tuning controller.
