@@ -96,3 +96,37 @@ def test_bad_files_fail_on_one_line_with_status_2(
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("fuzzyservo: error: ")
     assert match in err
+
+
+def test_regression_sine_reference_reports_no_step(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Review defect 2: a run with --reference sine:0.05:0.5 over 6 s ends with r[-1] one ulp
+    # below y[0] = 0.5; metrics printed overshoot 8.15e16 % and rise time 1.2 s.
+    t = np.linspace(0.0, 6.0, 6001)
+    r = 0.5 + 0.05 * np.sin(np.pi * t)
+    y = 0.5 + 0.05 * np.sin(np.pi * t - 0.3) * (1.0 - np.exp(-5.0 * t))
+    u = 4.0 * (r - y)
+    assert r[-1] != y[0]  # the reported rounding
+    cols = (t.tolist(), r.tolist(), y.tolist(), u.tolist())
+    rows = [f"{a!r},{b!r},{c!r},{d!r}" for a, b, c, d in zip(*cols, strict=True)]
+    run = tmp_path / "run.csv"
+    run.write_text("t,r,y,u\n" + "\n".join(rows) + "\n", encoding="utf-8")
+    assert main(["metrics", str(run), "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    for name in ("rise_time", "settling_time", "settling_time_5", "overshoot", "peak_time"):
+        assert got[name] is None, name
+    e = r - y
+    assert got["iae"] == pytest.approx(np.trapezoid(np.abs(e), t), rel=1e-12)  # rounding
+    assert got["u_max"] == pytest.approx(np.max(np.abs(u)), rel=1e-15)  # repr round-trip
+
+
+def test_regression_error_messages_show_plain_floats(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Review defect 3: "t[2] = np.float64(0.001) <= t[1] = ..." instead of plain numbers
+    run = tmp_path / "run.csv"
+    run.write_text("t,r,y,u\n0,1,0,0\n0.001,1,0.5,0\n0.001,1,1,0\n", encoding="utf-8")
+    assert main(["metrics", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert "t[2] = 0.001 <= t[1] = 0.001" in err and "np." not in err

@@ -77,8 +77,10 @@ PUBLISHED = {
         ct.tf([1, -1], [1, 1, 1]), -1.0, None,
         {"rise": 1.242, "settle": 9.110, "os": 20.840, "peak": -1.208, "tpeak": 4.282},
     ),
+    # python-control's test uses 0..5 s; the 2 % exit at ln 100 = 4.605 s lies in that record's
+    # last 10 %, which our rule (SETTLE_HOLD_FRACTION) reports as NaN: a 6 s record settles.
     "siso_tf_asymptotic_from_neg1": (
-        ct.tf([-1, 1], [1, 1]), 1.0, np.arange(0, 5, 1e-3),
+        ct.tf([-1, 1], [1, 1]), 1.0, np.arange(0, 6, 1e-3),
         {"rise": 2.197, "settle": 4.605, "os": 0.0, "peak": -1.0, "tpeak": 0.0},
     ),
 }  # fmt: skip
@@ -241,3 +243,85 @@ def test_malformed_input_raises_input_error(kwargs: dict[str, object], match: st
 def test_bad_options_raise_parameter_error(kwargs: dict[str, object]) -> None:
     with pytest.raises(ParameterError):
         step_metrics([0.0, 1.0], [0.0, 1.0], **kwargs)  # type: ignore[arg-type]
+
+
+def test_regression_limit_cycle_inside_band_at_end_is_not_settled() -> None:
+    # Review defect 1 through the API: +-12 % limit cycle, period 0.36 s, 20 s run, inside the
+    # 2 % band at the last samples (last exit 19.991 s) was reported settled at 19.992 s.
+    t = np.linspace(0.0, 20.0, 20001)
+    y = 1.0 + 0.12 * np.sin(2.0 * np.pi * (t - 20.0) / 0.36)
+    m = step_metrics(t, y, r=1.0, initial_value=0.0)
+    assert math.isnan(m.settling_time) and math.isnan(m.settling_time_5)
+    # a response that settles early keeps python-control's settling time (one sample)
+    # python-control's published case ends at 5 s, with its 2 % exit (ln 100 s) in the last 10 %
+    t1, y1 = ct.step_response(ct.tf([-1, 1], [1, 1]), np.arange(0, 5, 1e-3))
+    assert math.isnan(step_metrics(t1, y1, r=1.0, initial_value=0.0).settling_time)
+    t2, y2 = ct.step_response(SYSTEMS["underdamped_2nd"], t)
+    ref = ct.step_info(SYSTEMS["underdamped_2nd"], T=t2)
+    assert step_metrics(t2, y2, r=1.0).settling_time == pytest.approx(
+        ref["SettlingTime"], abs=t[1] - t[0]
+    )
+
+
+def test_regression_sine_reference_has_no_step() -> None:
+    # Review defect 2: r = 0.5 + 0.05 sin(pi t) on [0, 6] ends one ulp below y0 = 0.5; the
+    # exact-equality test made that a step of 5.6e-17 and overshoot ~8e16 %.
+    t = np.linspace(0.0, 6.0, 6001)
+    r = 0.5 + 0.05 * np.sin(np.pi * t)
+    y = 0.5 + 0.05 * np.sin(np.pi * t - 0.3) * (1.0 - np.exp(-5.0 * t))
+    assert r[-1] != y[0]  # the reported rounding
+    m = step_metrics(t, y, r=r, u=r - y)
+    for name in ("rise_time", "settling_time", "settling_time_5", "overshoot", "peak_time"):
+        assert math.isnan(getattr(m, name)), name
+    # integral criteria and command metrics are still computed (numpy trapezoid, rounding)
+    assert m.ise == pytest.approx(np.trapezoid((r - y) ** 2, t), rel=1e-12)
+    assert m.u_total_variation == pytest.approx(np.sum(np.abs(np.diff(r - y))), rel=1e-12)
+    assert m.steady_state_error == r[-1] - y[-1]  # exact: one subtraction
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        (
+            {"t": np.array([0.0, 0.001, 0.001]), "y": [0.0, 1.0, 1.0]},
+            "t[2] = 0.001 <= t[1] = 0.001",
+        ),
+        ({"t": [0.0, 1.0], "y": [0.0, 1.0], "final_value": np.float64(np.nan)}, "got nan"),
+        ({"t": [0.0, 1.0], "y": [0.0, 1.0], "r": np.float64(np.inf)}, "got inf"),
+        ({"t": [0.0, 1.0], "y": [0.0, 1.0], "initial_value": np.float32(-np.inf)}, "got -inf"),
+        ({"t": [0.0, 1.0], "y": np.array([0.0, np.nan])}, "y[1] = nan is not"),
+        (
+            {"t": [0.0, 1.0], "y": [0.0, 1.0], "rise": (np.float64(0.9), np.float64(0.1))},
+            "got (0.9, 0.1)",
+        ),
+        ({"t": [0.0, 1.0], "y": [0.0, 1.0], "settle_band": np.float64(1.5)}, "got 1.5"),
+    ],
+)
+def test_regression_error_messages_show_plain_floats(
+    kwargs: dict[str, object], message: str
+) -> None:
+    # Review defect 3: messages read "t[2] = np.float64(0.001) <= ..." (numpy 2 reprs)
+    kw = dict(kwargs)
+    t, y = kw.pop("t"), kw.pop("y")
+    with pytest.raises((InputError, ParameterError)) as info:
+        step_metrics(t, y, **kw)  # type: ignore[arg-type]
+    assert message in str(info.value)
+    assert "np." not in str(info.value)
+
+
+def test_regression_times_include_the_wait_of_a_delayed_step() -> None:
+    # Review item 4 (documented convention): times are measured from t[0], as python-control
+    # does, so a step applied 1 s into the record has peak and settling times 1 s later than
+    # the same step recorded from its start; the rise time is an interval and does not move.
+    zeta, wn, delay = 0.3, 2.0, 1.0
+    wd = wn * math.sqrt(1.0 - zeta**2)
+    t = np.linspace(0.0, 20.0, 20001)
+    tau = np.maximum(t - delay, 0.0)  # time since the step
+    y = 1.0 - np.exp(-zeta * wn * tau) * (np.cos(wd * tau) + zeta * wn / wd * np.sin(wd * tau))
+    delayed = step_metrics(t, y, r=1.0)
+    t_from_step, y_from_step = t[1000:] - delay, y[1000:]  # t[1000] = 1 s, the step's instant
+    ref = ct.step_info(y_from_step, T=t_from_step, yfinal=1.0)
+    dt = t[1] - t[0]
+    assert delayed.peak_time == pytest.approx(delay + math.pi / wd, abs=dt)  # analytic, 1 sample
+    assert delayed.settling_time == pytest.approx(delay + ref["SettlingTime"], abs=dt)  # 1 sample
+    assert delayed.rise_time == pytest.approx(ref["RiseTime"], abs=dt)  # one sample

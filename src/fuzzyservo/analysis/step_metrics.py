@@ -62,19 +62,27 @@ def _signal(name: str, value: ArrayLike, n: int | None) -> FloatArray:
     if bad.size:
         k = int(bad[0])
         raise InputError(
-            f"{name}[{k}] = {float(arr[k])!r} is not finite; every sample must be finite"
+            f"{name}[{k}] = {float(arr[k])} is not finite; every sample must be finite"
         )
     return np.ascontiguousarray(arr)
 
 
 def _finite(name: str, value: float) -> float:
+    # Messages show float(value), not repr(value): a numpy scalar would read "np.float64(nan)".
     try:
         v = float(value)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be a finite number, got {value!r}") from exc
+        raise InputError(f"{name} must be a finite number, got {value!r:.60}") from exc
     if not math.isfinite(v):
-        raise InputError(f"{name} must be a finite number, got {value!r}")
+        raise InputError(f"{name} must be a finite number, got {v}")
     return v
+
+
+def _option(name: str, value: object) -> float:
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"{name} must be a number, got {value!r:.60}") from exc
 
 
 def step_metrics(
@@ -132,11 +140,22 @@ def step_metrics(
 
     Notes
     -----
-    NaN means: rise time, settling times and overshoot when ``final_value == initial_value``
-    (no step to measure); rise time when ``y`` never reaches ``rise[1]`` of the span; a
-    settling time when the last sample lies outside its band (not settled within the record);
-    the steady-state error when neither ``r`` nor ``final_value`` is given (no reference:
-    it would be zero by construction); the ``u_*`` metrics without ``u``.
+    NaN means: rise time, settling times, overshoot and peak time when there is no step to
+    measure, i.e. ``|final_value - initial_value| <= NO_STEP_RTOL * max(1, |initial_value|,
+    |final_value|, max(y) - min(y))`` (:data:`fuzzyservo.sim.stepinfo.NO_STEP_RTOL` = 1e-9,
+    so rounding of a reference that ends where it started is not a step; the integral
+    criteria and ``u_*`` metrics are still computed); rise time when ``y`` never reaches
+    ``rise[1]`` of the span; a settling time when ``y`` is outside its band at any sample
+    after ``t[0] + 0.9 (t[-1] - t[0])`` (not shown to settle within the record: it must stay
+    in the band for the last :data:`~fuzzyservo.sim.stepinfo.SETTLE_HOLD_FRACTION` = 10 % of
+    it, so a limit cycle that happens to be in the band at the end is not "settled"); the
+    steady-state error when neither ``r`` nor ``final_value`` is given (no reference: it
+    would be zero by construction); the ``u_*`` metrics without ``u``.
+
+    Times are measured from ``t[0]``, not from the start of a delayed step (python-control's
+    convention): ``peak_time`` and the settling times of a step applied at ``t[0] + d``
+    include the wait ``d``; ``rise_time``, a difference of two crossing times, does not. Pass
+    the record from the step onwards to measure from the step.
 
     With ``initial_value = 0`` and ``final_value`` equal to the steady-state value,
     ``rise_time``, ``settling_time``, ``overshoot`` and ``peak_time`` follow python-control's
@@ -159,15 +178,20 @@ def step_metrics(
     if not np.all(steps > 0.0):
         k = int(np.flatnonzero(steps <= 0.0)[0])
         raise InputError(
-            f"t must be strictly increasing, but t[{k + 1}] = {tt[k + 1]!r} <= t[{k}] = {tt[k]!r}"
+            f"t must be strictly increasing, but t[{k + 1}] = {float(tt[k + 1])} "
+            f"<= t[{k}] = {float(tt[k])}"
         )
     yy = _signal("y", y, n)
-    lo, hi = (float(v) for v in rise)
+    if np.ndim(rise) != 1 or len(rise) != 2:
+        raise ParameterError(f"rise must be a pair (lo, hi) of fractions, got {rise!r:.60}")
+    lo, hi = _option("rise[0]", rise[0]), _option("rise[1]", rise[1])
     if not 0.0 <= lo < hi <= 1.0:
-        raise ParameterError(f"rise must satisfy 0 <= lo < hi <= 1, got {rise!r}")
-    for name, band in (("settle_band", settle_band), ("settle_band2", settle_band2)):
+        raise ParameterError(f"rise must satisfy 0 <= lo < hi <= 1, got ({lo}, {hi})")
+    band1 = _option("settle_band", settle_band)
+    band2 = _option("settle_band2", settle_band2)
+    for name, band in (("settle_band", band1), ("settle_band2", band2)):
         if not 0.0 < band < 1.0:
-            raise ParameterError(f"{name} must be in (0, 1), got {band!r}")
+            raise ParameterError(f"{name} must be in (0, 1), got {band}")
 
     rr: FloatArray | None = None
     if r is not None:
@@ -187,8 +211,7 @@ def step_metrics(
 
     out = np.empty(N_METRICS)
     step_metrics_core(
-        tt, yy, uu, np.full(n, yf) if rr is None else rr, y0, yf, lo, hi,
-        float(settle_band), float(settle_band2), out,
+        tt, yy, uu, np.full(n, yf) if rr is None else rr, y0, yf, lo, hi, band1, band2, out,
     )  # fmt: skip
     if r is None and final_value is None:
         out[METRIC_NAMES.index("steady_state_error")] = math.nan

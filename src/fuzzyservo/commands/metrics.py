@@ -54,7 +54,10 @@ def register(subparsers: Any) -> None:
             "Print rise time (10-90 %), settling times (2 % and 5 % bands), overshoot, peak, "
             "steady-state error, IAE, ISE, ITAE, ITSE and command metrics of a CSV written by "
             "'fuzzyservo simulate' (columns t, r, y, u). The target is the last reference "
-            "value; a metric the data cannot define is nan (null in JSON)."
+            "value; times are measured from the first sample (a delayed step's wait is "
+            "included). A metric the data cannot define is nan (null in JSON): step-shaped "
+            "metrics when the reference ends where y started (no step), a settling time when "
+            "y leaves its band in the run's last 10 %."
         ),
     )
     parser.add_argument("csv", type=Path, help="run CSV with columns t, r, y, u")

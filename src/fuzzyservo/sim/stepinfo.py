@@ -18,7 +18,13 @@ import numpy as np
 
 from .._typing import FloatArray
 
-__all__ = ["METRIC_NAMES", "N_METRICS", "step_metrics_core"]
+__all__ = [
+    "METRIC_NAMES",
+    "NO_STEP_RTOL",
+    "N_METRICS",
+    "SETTLE_HOLD_FRACTION",
+    "step_metrics_core",
+]
 
 #: Names of the metrics, in the order :func:`step_metrics_core` writes them.
 METRIC_NAMES: tuple[str, ...] = (
@@ -40,6 +46,19 @@ METRIC_NAMES: tuple[str, ...] = (
 
 #: Number of metrics; ``out`` must hold at least this many values.
 N_METRICS: int = len(METRIC_NAMES)
+
+#: Fraction of the record (``t[-1] - t[0]``) at its end that a response must spend inside a
+#: settling band to count as settled: a settling time is NaN unless the last sample outside
+#: the band is at or before ``t[0] + (1 - SETTLE_HOLD_FRACTION) (t[-1] - t[0])``. Without it a
+#: sustained oscillation (limit cycle) that happens to be inside the band at the last few
+#: samples would be reported as settled just before the end of the run [1].
+SETTLE_HOLD_FRACTION: float = 0.1
+
+#: Relative tolerance below which ``y_final - y0`` counts as no step: the span is zero when
+#: ``|y_final - y0| <= NO_STEP_RTOL * max(1, |y0|, |y_final|, max(y) - min(y))``. Rounding
+#: (e.g. a sine reference ending at ``0.5 + 0.05 sin(6 pi)`` instead of 0.5) must not turn a
+#: run with no step into one whose overshoot is divided by 1e-17 [1].
+NO_STEP_RTOL: float = 1e-9
 
 _RISE, _SETTLE, _SETTLE2, _OS, _PEAK, _TPEAK, _ESS = 0, 1, 2, 3, 4, 5, 6
 _IAE, _ISE, _ITAE, _ITSE, _UMAX, _USQ, _UTV = 7, 8, 9, 10, 11, 12, 13
@@ -91,8 +110,10 @@ def step_metrics_core(
     -----
     The kernel assumes valid input (finite values, strictly increasing ``t``, ``len(t) >= 1``);
     the analysis API validates. A metric the data cannot define is NaN: rise time, both
-    settling times and overshoot when ``y_final == y0``; rise time when ``y`` never reaches
-    ``rise_hi``; a settling time when the last sample is outside its band.
+    settling times, overshoot and peak time when there is no step (``|y_final - y0|`` within
+    :data:`NO_STEP_RTOL` of the signal's scale); rise time when ``y`` never reaches
+    ``rise_hi``; a settling time when ``y`` leaves its band during the last
+    :data:`SETTLE_HOLD_FRACTION` of the record (not shown to settle within the record).
     """
     n = t.shape[0]
     for i in range(N_METRICS):
@@ -101,19 +122,24 @@ def step_metrics_core(
         return
     t0 = t[0]
 
-    # Peak: largest excursion from y0 (first sample attaining it).
+    # Peak: largest excursion from y0 (first sample attaining it); y's range for the no-step test.
     k_pk = 0
     d_max = -1.0
+    y_min = y[0]
+    y_max = y[0]
     for k in range(n):
         d = abs(y[k] - y0)
         if d > d_max:
             d_max = d
             k_pk = k
+        y_min = min(y_min, y[k])
+        y_max = max(y_max, y[k])
     out[_PEAK] = y[k_pk]
-    out[_TPEAK] = t[k_pk] - t0
 
     span = y_final - y0
-    if span != 0.0 and math.isfinite(span):
+    scale = max(1.0, abs(y0), abs(y_final), y_max - y_min)
+    if abs(span) > NO_STEP_RTOL * scale and math.isfinite(span):
+        out[_TPEAK] = t[k_pk] - t0
         s = 1.0 if span > 0.0 else -1.0
         # Rise time: first samples at or beyond the two thresholds (python-control's rule).
         lvl_lo = y0 + rise_lo * span
@@ -138,12 +164,19 @@ def step_metrics_core(
                 last2 = k
             if last1 != -2 and last2 != -2:
                 break
-        k1 = 0 if last1 == -2 else last1 + 1
-        k2 = 0 if last2 == -2 else last2 + 1
-        if k1 < n:
-            out[_SETTLE] = t[k1] - t0
-        if k2 < n:
-            out[_SETTLE2] = t[k2] - t0
+        # Settled only if the last exit is no later than the start of the record's final
+        # SETTLE_HOLD_FRACTION (a limit cycle may be inside the band at its last samples).
+        # A last exit within 1e-9 of the record of that instant counts as on time, so rounding
+        # of shifted time stamps cannot flip a sample that lies on it (samples are far apart).
+        t_hold = (1.0 - SETTLE_HOLD_FRACTION + 1e-9) * (t[n - 1] - t0)
+        if last1 == -2:
+            out[_SETTLE] = 0.0
+        elif last1 < n - 1 and t[last1] - t0 <= t_hold:
+            out[_SETTLE] = t[last1 + 1] - t0
+        if last2 == -2:
+            out[_SETTLE2] = 0.0
+        elif last2 < n - 1 and t[last2] - t0 <= t_hold:
+            out[_SETTLE2] = t[last2 + 1] - t0
         # Overshoot: largest excursion beyond the target in the step's direction [%].
         os_max = 0.0
         for k in range(n):
