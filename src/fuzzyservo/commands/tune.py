@@ -31,6 +31,7 @@ from ..analysis.autotune import (
 from ..analysis.tuning import OBJECTIVES, TuningConstraints
 from ..errors import ParameterError
 from ..paper import alpha_system, du_system
+from ..plant import ServoParams
 from ._plantargs import add_plant_arguments, params_from_args, parse_param
 
 __all__ = ["checkpoint_path", "register"]
@@ -71,8 +72,10 @@ def register(subparsers: Any) -> None:
                    help="simulated time per run [s] (default 10)")
     p.add_argument("--ts", type=float, default=0.001, metavar="S",
                    help="controller sample period [s] (default 0.001)")
-    p.add_argument("--delay", type=float, default=0.0, metavar="S",
-                   help="transport delay on the command [s] (default 0)")
+    p.add_argument("--delay", type=float, default=None, metavar="S",
+                   help="transport (hose) delay on the command [s] (default: the parameter "
+                        "set's delay.transport_delay, as in simulate; 0 for none, as the "
+                        "paper's Figs. 4-7)")
     p.add_argument("--start", type=float, default=0.5, metavar="FRACTION",
                    help="start position as a fraction of the stroke (default 0.5)")
     p.add_argument("--out", type=Path, required=True, metavar="FILE.toml",
@@ -86,7 +89,7 @@ def register(subparsers: Any) -> None:
     p.set_defaults(handler=run)
 
 
-def _setup(args: argparse.Namespace) -> TuningSetup:
+def _setup(args: argparse.Namespace, params: ServoParams) -> TuningSetup:
     for name, value in (("--max-overshoot", args.max_overshoot), ("--max-sse", args.max_sse),
                         ("--max-u", args.max_u)):
         if value is not None and not (math.isfinite(value) and value >= 0.0):
@@ -95,7 +98,9 @@ def _setup(args: argparse.Namespace) -> TuningSetup:
     return TuningSetup(
         controller=args.controller, plant=args.plant, param_set=args.param_set,
         overrides=overrides, start=args.start, step=args.step, duration=args.duration,
-        ts=args.ts, delay=args.delay, objective=args.objective,
+        ts=args.ts,
+        delay=params.delay.transport_delay if args.delay is None else args.delay,
+        objective=args.objective,
         constraints=TuningConstraints(max_overshoot=args.max_overshoot,
                                       max_steady_state_error=args.max_sse / 100.0,
                                       max_u=args.max_u),
@@ -141,8 +146,8 @@ class _Progress:
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo tune``."""
-    setup = _setup(args)
     params = params_from_args(args)
+    setup = _setup(args, params)
     out: Path = args.out
     ckpt_file = checkpoint_path(out)
     resume = load_checkpoint(ckpt_file) if args.resume else None
