@@ -117,6 +117,7 @@ def evaluate_claims(
     stfpi_equal: str | None = None,
     delay_failures: Mapping[str, Sequence[float]] | None = None,
     stfpi_overshoot_limit: float | None = None,
+    delay_sweep: Sequence[float] | None = None,
 ) -> list[Claim]:
     """Give every claim C1-C8 a verdict for one plant.
 
@@ -148,6 +149,8 @@ def evaluate_claims(
     delay_failures : mapping, optional
         Controller key -> every delay [s] of the sweep at which it fails (the sweep need not
         fail monotonically: a limit cycle can appear at one delay and not at a larger one).
+    delay_sweep : sequence of float, optional
+        The delays of the sweep [s] (to say "every delay" instead of listing them all).
     stfpi_overshoot_limit : float, optional
         Overshoot limit [%] the self-tuning controller was tuned under. When it is within the
         "no overshoot" threshold, C1 holding is partly a consequence of the tuning; C1 then
@@ -227,6 +230,8 @@ def evaluate_claims(
     def fails(k: str) -> str:
         if delay_failures is None or not delay_failures.get(k):
             return ""
+        if delay_sweep is not None and len(delay_failures[k]) == len(delay_sweep):
+            return " (fails at every delay of the sweep)"
         ms = ", ".join(f"{d * 1e3:.3g}" for d in delay_failures[k])
         return f" (fails at {ms} ms)"
 

@@ -300,7 +300,7 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Mapping[str
         alpha_trace=(runs["stfpi"].t, runs["stfpi"].alpha), delayed=delayed_metrics,
         delay=cfg.fig8_delay, delay_margins=margins, variants=var_metrics,
         stfpi_equal="stfpi_10", delay_failures=failures,
-        stfpi_overshoot_limit=stfpi_overshoot_limit)
+        stfpi_overshoot_limit=stfpi_overshoot_limit, delay_sweep=tuple(delays))
     return PlantStudy(plant=kind, cases=tuple(cases), runs=runs, metrics=metrics,
                       delayed=delayed, delayed_metrics=delayed_metrics, delays=delays,
                       sweep=sweep, delay_margins=margins, delay_failures=failures,
