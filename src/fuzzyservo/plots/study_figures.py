@@ -58,7 +58,14 @@ class Curve:
     linestyle: str = "-"
 
 
+#: Colours of changed plants (robustness figures), distinct from the controllers' colours.
+VARIANT_COLOURS: tuple[str, ...] = ("#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173",
+                                    "#5254a3", "#8ca252")
+
+
 def _colour(key: str) -> str:
+    if key.startswith("variant") and key[7:].isdigit():
+        return VARIANT_COLOURS[int(key[7:]) % len(VARIANT_COLOURS)]
     return CONTROLLER_COLOURS.get(key, "#7f7f7f")
 
 

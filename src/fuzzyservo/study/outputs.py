@@ -82,7 +82,8 @@ def _figures(study: PlantStudy, cfg: StudyConfig, out: Path) -> list[Figure]:
         f"{cfg.duration:g} s (failure).")
     curves = [_curve(study, "stfpi", label="nominal")]
     for i, (name, run) in enumerate(study.variant_runs.items()):
-        curves.append(Curve(f"variant{i}", name, run.t, run.y, run.u, run.alpha, run.r, "--"))
+        curves.append(Curve(f"variant{i}", name, run.t, run.y, run.u, run.alpha, run.r,
+                            ("--", "-.", ":")[i % 3]))
     put(step_figure(curves, f"Changed plant ({p}): self-tuning fuzzy PI, gains fixed", y0=y0),
         f"robustness_{p}", f"Claim C8, {p} plant: the self-tuning fuzzy PI on changed plants.")
     return figs
