@@ -32,7 +32,7 @@ lint: $(STAMP)
 	$(BIN)/mypy src
 
 test: lint
-	$(BIN)/python -m pytest -n 2 -q
+	$(BIN)/python -m pytest -n 2 --dist loadgroup -q
 
 bench: $(STAMP) $(FLVENV)/.installed-stamp
 	$(BIN)/python benchmarks/run_all.py --fuzzylite-python $(FLVENV)/bin/python

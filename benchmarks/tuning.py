@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from fuzzyservo.analysis.autotune import TuningSetup, tune_controller
-from fuzzyservo.paper import alpha_system, du_system, named_set
+from fuzzyservo.paper import named_set
 from fuzzyservo.study.runner import PLANTS, retune
 
 
@@ -25,18 +25,17 @@ def main() -> int:
         for plant in PLANTS:
             retune(plant, params, "paper", args.write_gains, progress=print)
         return 0
-    du, al = du_system(), alpha_system()
     for plant in PLANTS:  # warm-up: compile/load every kernel
         for kind in ("stfpi", "pid"):
             tune_controller(TuningSetup(controller=kind, plant=plant, popsize=2, maxiter=1,
-                                        duration=0.5), params, du_system=du, alpha_system=al)
+                                        duration=0.5), params)
     print(f"{'controller':<10} {'plant':<10} {'wall [s]':>9} {'runs':>6} {'itae':>9} "
           f"{'overshoot [%]':>13} {'rise [s]':>8} {'settle [s]':>10} feasible")
     for plant in PLANTS:
         for kind in ("pid", "stfpi"):
             setup = TuningSetup(controller=kind, plant=plant)
             t0 = time.perf_counter()
-            tuned = tune_controller(setup, params, du_system=du, alpha_system=al)
+            tuned = tune_controller(setup, params)
             wall = time.perf_counter() - t0
             m = tuned.metrics
             print(f"{kind:<10} {plant:<10} {wall:9.1f} {tuned.n_evaluations:6d} "

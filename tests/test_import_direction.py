@@ -13,10 +13,13 @@ ALLOWED: dict[str, set[str]] = {
     "plant": set(),
     "control": {"fuzzy"},
     "sim": {"control", "plant", "fuzzy"},
-    "analysis": {"sim", "control", "plant", "fuzzy"},
-    "plots": {"analysis", "sim", "control", "plant", "fuzzy", "paper"},
     "paper": {"fuzzy", "plant", "control"},
-    "study": {"fuzzy", "plant", "control", "sim", "analysis", "plots", "paper"},
+    "registry": {"fuzzy", "plant", "control", "sim", "paper"},
+    "analysis": {"registry", "sim", "control", "plant", "fuzzy"},
+    "files": {"analysis", "registry", "sim", "control", "plant", "fuzzy"},
+    "plots": {"analysis", "sim", "control", "plant", "fuzzy", "paper"},
+    "study": {"fuzzy", "plant", "control", "sim", "paper", "registry", "analysis", "files",
+              "plots"},
 }
 ALWAYS = {"errors", "_typing"}
 

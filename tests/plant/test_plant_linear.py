@@ -50,17 +50,34 @@ def test_dc_velocity_gain(model: LinearServo) -> None:
 
 
 def test_discretize_matches_scipy(model: LinearServo) -> None:
-    ad, bd, _, _ = model.discretize(1e-3)
+    m = model.discretize(1e-3)
     a, b, c, d = model.state_space()
     ref = signal.cont2discrete((a, b, c, d), 1e-3, method="zoh")
     # both expm of the same matrix; 1e-10 absolute for entries of order <= 1e3
-    np.testing.assert_allclose(ad, ref[0], atol=1e-10, rtol=1e-10)
-    np.testing.assert_allclose(bd, ref[1], atol=1e-10, rtol=1e-10)
+    np.testing.assert_allclose(m.phi, ref[0], atol=1e-10, rtol=1e-10)
+    np.testing.assert_allclose(m.gamma0, ref[1][:, 0], atol=1e-10, rtol=1e-10)
+    assert (m.d, m.f) == (0, 0.0) and not np.any(m.gamma1)
+
+
+def test_fractional_delay_splits_the_input_vector(model: LinearServo) -> None:
+    """Γ_0 + Γ_1 is the undelayed input vector; Γ_1 is the part of a sample the previous
+    command still acts (Åström & Wittenmark): against scipy's ZOH over f and over ts - f."""
+    ts, delay = 1e-3, 2.4e-3
+    m = model.discretize(ts, delay)
+    assert m.d == 2 and m.f == pytest.approx(0.4e-3, rel=1e-12)
+    a, b, c, d = model.state_space()
+    full = signal.cont2discrete((a, b, c, d), ts, method="zoh")
+    np.testing.assert_allclose(m.phi, full[0], atol=1e-10, rtol=1e-10)
+    np.testing.assert_allclose(m.gamma, full[1][:, 0], atol=1e-10, rtol=1e-10)
+    head = signal.cont2discrete((a, b, c, d), ts - m.f, method="zoh")
+    tail = signal.cont2discrete((a, b, c, d), m.f, method="zoh")
+    np.testing.assert_allclose(m.gamma0, head[1][:, 0], atol=1e-10, rtol=1e-10)
+    np.testing.assert_allclose(m.gamma1, head[0] @ tail[1][:, 0], atol=1e-10, rtol=1e-10)
 
 
 def test_invalid_linear_model() -> None:
     with pytest.raises(ParameterError, match="LinearServo.omega_0 must be a finite number > 0"):
         LinearServo(K_o=0.26, omega_0=0.0, damping=0.1, omega_v=688.7, zeta_v=0.36)
-    with pytest.raises(ParameterError, match="dt"):
+    with pytest.raises(ParameterError, match="sample time ts must be finite and > 0"):
         LinearServo(K_o=0.26, omega_0=19.6, damping=0.1, omega_v=688.7,
                     zeta_v=0.36).discretize(-1.0)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -24,7 +23,15 @@ from fuzzyservo.plant import (
     with_overrides,
 )
 from fuzzyservo.plant.nonlinear import PRESSURE_FLOOR_BAND, floor_factor
-from fuzzyservo.sim.open_loop import simulate_open_loop
+from fuzzyservo.registry import build_plant
+from fuzzyservo.sim import OpenLoopResult, simulate_open_loop
+
+
+def _open_loop(p: ServoParams, command: object, *, duration: float,
+               position: float | None = None) -> OpenLoopResult:
+    """Open loop on the nonlinear plant at the open-loop grade RK4 step (0.1 ms)."""
+    plant = build_plant("nonlinear", p, position, substep=1e-4)
+    return simulate_open_loop(plant, command, duration=duration)  # type: ignore[arg-type]
 
 
 @pytest.fixture(scope="module")
@@ -39,8 +46,7 @@ def test_state_names() -> None:
 
 def test_per_step_api_equals_kernel(paper: ServoParams) -> None:
     prof = np.where(np.arange(300) < 150, 0.4, -0.2)
-    run = simulate_open_loop(replace(paper, delay=replace(paper.delay, transport_delay=0.0)),
-                             prof, duration=0.3)
+    run = _open_loop(paper, prof, duration=0.3)
     servo = NonlinearServo(paper)
     x = run.states[0].copy()
     for k in range(300):
@@ -64,7 +70,7 @@ def test_command_limit(paper: ServoParams) -> None:
 
 @pytest.mark.parametrize(("u", "end"), [(1.0, "top"), (-1.0, "bottom")])
 def test_end_stops_hold(paper: ServoParams, u: float, end: str) -> None:
-    run = simulate_open_loop(paper, u, duration=6.0, position=0.2 if u > 0 else 0.8)
+    run = _open_loop(paper, u, duration=6.0, position=0.2 if u > 0 else 0.8)
     stroke = paper.cylinder.stroke
     k, m = paper.cylinder.stop_stiffness, paper.load.mass
     f = paper.cylinder.piston_area * paper.supply.pressure  # largest hydraulic force
@@ -84,7 +90,7 @@ def test_end_stops_hold(paper: ServoParams, u: float, end: str) -> None:
 def test_pressure_floor(paper: ServoParams) -> None:
     # reversing at full command from full speed cavitates a chamber
     prof = np.where(np.arange(1000) < 400, 1.0, -1.0)
-    run = simulate_open_loop(paper, prof, duration=1.0)
+    run = _open_loop(paper, prof, duration=1.0)
     low = min(run.p_f.min(), run.p_n.min())
     assert low < PRESSURE_FLOOR_BAND  # the floor is reached...
     assert low >= -1.0  # ...and not crossed (1 Pa for the RK4 step inside the smoothstep)

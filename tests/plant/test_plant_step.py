@@ -15,14 +15,15 @@ DELAY = 6  # samples of the 6 ms hose delay
 
 
 def _p_loop_linear(model: LinearServo, step: float) -> np.ndarray:
-    ad, bd, c, _ = model.discretize(DT)
-    z = np.zeros(ad.shape[0])
+    m = model.discretize(DT)
+    c = model.state_space()[2]
+    z = np.zeros(m.phi.shape[0])
     fifo = [0.0] * DELAY
     y = np.empty(N)
     for k in range(N):
         y[k] = float(c[0] @ z)
         fifo.append(KP * (step - y[k]))
-        z = ad @ z + bd[:, 0] * fifo.pop(0)
+        z = m.phi @ z + m.gamma * fifo.pop(0)
     return y
 
 

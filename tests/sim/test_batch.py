@@ -41,7 +41,8 @@ def test_batch_equals_per_step_api_on_linear_plant(servo: LinearServo) -> None:
     ctl = _stfpi()
     res = simulate_batch(ctl, plant=LinearPlant.from_servo(servo), reference=Step(0.1),
                          duration=5.0, delay=0.006, keep_traces=True)
-    phi, gam, c, _ = servo.discretize(H)
+    m = servo.discretize(H)
+    phi, gam, c = m.phi, m.gamma, servo.state_space()[2]
     x = np.zeros(phi.shape[0])
     s = ctl.initial_state()
     fifo: deque[float] = deque([0.0] * 6)
@@ -50,7 +51,7 @@ def test_batch_equals_per_step_api_on_linear_plant(servo: LinearServo) -> None:
         y = float((c @ x)[0])
         u, s = ctl.step(s, 0.1, y)
         fifo.append(u)
-        x = phi @ x + gam[:, 0] * fifo.popleft()
+        x = phi @ x + gam * fifo.popleft()
         ys.append(y)
         alphas.append(s.alpha)
     assert res.y is not None and res.alpha is not None

@@ -98,7 +98,8 @@ def test_timing_of_rows_and_csv(servo: LinearServo, tmp_path: Path) -> None:
     assert res.t.size == 51 and res.t[-1] == pytest.approx(0.05, abs=1e-15)  # exact grid
     assert np.all(res.u == np.clip(2.0 * (res.r - res.y), -1, 1))  # u_k from y_k at t_k
     assert res.y[0] == 0.0 and res.r[9] == 0.0 and res.r[10] == 0.1
-    out = res.to_csv(tmp_path / "run.csv")
+    out = tmp_path / "run.csv"
+    res.to_csv(out)
     with out.open() as fh:
         rows = list(csv.reader(fh))
     assert rows[0][:5] == ["t", "r", "y", "u", "alpha"]
@@ -204,7 +205,7 @@ def test_bad_run_parameters_raise(servo: LinearServo, kw: dict[str, float], matc
 def test_matrix_exponential_matches_scipy(servo: LinearServo, h: float) -> None:
     from scipy.linalg import expm
 
-    from fuzzyservo.sim.closed_loop import expm_pade13
+    from fuzzyservo.plant.zoh import expm as expm_pade13
 
     a, b, _, _ = servo.state_space()
     n = a.shape[0]

@@ -4,34 +4,42 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import re
+from html import escape
 from pathlib import Path
 
 import pytest
 
 from fuzzyservo.cli import main
-from fuzzyservo.paper import named_set
-from fuzzyservo.study.paper_study import StudyConfig, run_plant_study
+from fuzzyservo.paper import PAPER_PIDS, named_set
+from fuzzyservo.sim import DEFAULT_DELAY
+from fuzzyservo.study.paper_study import TUNED_DESIGNS, Design, StudyConfig, run_plant_study
 from fuzzyservo.study.runner import default_gains_dir, load_tuned
 
 SHORT = dict(duration=6.0, delay_sweep=(0.0, 0.006, 0.05, 0.2))
+COLUMNS = ("rise_time", "settling_time", "overshoot", "steady_state_error", "iae", "itae",
+           "u_max")
+
+pytestmark = pytest.mark.xdist_group("reproduce")
 
 
-def _gains(plant: str) -> dict[str, dict[str, float]]:
-    return {k: dict(v.gains) for k, v in load_tuned(plant, default_gains_dir()).items()}
+def _designs(plant: str) -> dict[str, Design]:
+    return {k: (v.controller, dict(v.gains))
+            for k, v in load_tuned(plant, default_gains_dir()).items()}
 
 
-@pytest.fixture(scope="module")
-def linear_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("repro")
-    status = main(["reproduce", "--out", str(out), "--plant", "linear", "--duration", "6",
-                   "--quiet"])
-    assert status == 0
+def _printed(text: str) -> dict[str, float]:
+    out = {}
+    for line in text.splitlines():
+        parts = line.split()
+        if len(parts) >= 2:
+            out[parts[0]] = float(parts[1])
     return out
 
 
-def test_reproduce_writes_every_output(linear_run: Path) -> None:
-    out = linear_run
+def test_reproduce_writes_every_output(reproduced: Path) -> None:
+    out = reproduced
     for stem in ("fig4_linear", "fig5_linear", "fig6_linear", "fig7_linear", "fig8_linear",
                  "fig8_delay_overshoot_linear", "robustness_linear", "fig3a_surface_du"):
         assert (out / f"{stem}.png").stat().st_size > 10_000, stem
@@ -51,50 +59,61 @@ def test_reproduce_writes_every_output(linear_run: Path) -> None:
     assert len(list((out / "traces").glob("linear_*.csv"))) >= 8
 
 
-def test_second_run_reuses_the_cache(linear_run: Path, capsys: pytest.CaptureFixture[str]
+def test_second_run_reuses_the_cache(reproduced: Path, reproduce_args: tuple[str, ...]
                                      ) -> None:
-    before = {p: p.stat().st_mtime_ns for p in (linear_run / ".cache").iterdir()}
-    assert main(["reproduce", "--out", str(linear_run), "--plant", "linear", "--duration", "6",
-                 "--quiet"]) == 0
-    after = {p: p.stat().st_mtime_ns for p in (linear_run / ".cache").iterdir()}
+    before = {p: p.stat().st_mtime_ns for p in (reproduced / ".cache").iterdir()}
+    assert main(["reproduce", "--out", str(reproduced), *reproduce_args]) == 0
+    after = {p: p.stat().st_mtime_ns for p in (reproduced / ".cache").iterdir()}
     assert before == after  # nothing recomputed
 
 
-def test_report_numbers_equal_simulate_metrics(linear_run: Path, tmp_path: Path,
-                                               capsys: pytest.CaptureFixture[str]) -> None:
-    with (linear_run / "metrics.csv").open() as fh:
+def _simulate_args(key: str) -> list[str]:
+    """How a user reruns a study controller: its committed gains file, or the paper's
+    gains as printed; nothing else than the plant, reference and duration."""
+    if key in PAPER_PIDS:
+        g = PAPER_PIDS[key]
+        return ["--controller", "pid", "--gains", f"kp={g.kp},ki={g.ki},kd={g.kd}"]
+    name = TUNED_DESIGNS[key][0]
+    return ["--gains", str(default_gains_dir() / f"linear-{name}.toml")]
+
+
+def test_simulate_reproduces_every_metrics_row_with_no_extra_flag(
+        reproduced: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 8's acceptance: ``fuzzyservo simulate --gains FILE --plant linear --reference
+    step:0.1 --duration 20 --metrics`` prints the row of metrics.csv: the study's nominal
+    runs and simulate use the same default delay (none)."""
+    assert StudyConfig(params=named_set("paper")).delay == DEFAULT_DELAY == 0.0
+    with (reproduced / "metrics.csv").open() as fh:
         rows = {r["controller"]: r for r in csv.DictReader(fh) if r["plant"] == "linear"}
-    row = rows["stfpi"]
-    gains = row["gains"].replace(" = ", "=").replace(", ", ",")
-    capsys.readouterr()
-    assert main(["simulate", "--plant", "linear", "--controller", "stfpi", "--gains", gains,
-                 "--reference", "step:0.1", "--duration", "6", "--ts", "0.001", "--delay", "0",
-                 "--out", str(tmp_path / "run.csv"), "--metrics"]) == 0
-    printed = {}
-    for line in capsys.readouterr().out.splitlines():
-        parts = line.split()
-        if len(parts) >= 2:
-            printed[parts[0]] = float(parts[1])
-    html = (linear_run / "report.html").read_text()
+    assert set(rows) == set(PAPER_PIDS) | set(TUNED_DESIGNS)
+    html = (reproduced / "report.html").read_text()
     start = html.index("Results on the linear plant")
-    row_start = html.index(f"<td>{row['label']}</td>", start)
-    cells = re.findall(r'<td class="num">([^<]*)</td>',
-                       html[row_start:html.index("</tr>", row_start)])
-    for i, col in enumerate(("rise_time", "settling_time", "overshoot", "steady_state_error",
-                             "iae", "itae", "u_max")):
-        key = next(k for k in row if k.startswith(col + " "))
-        # the same run through the same code; simulate prints 6 significant digits
-        assert float(row[key]) == pytest.approx(printed[col], rel=5e-6, abs=1e-12), col
-        # the report shows 4 significant digits of the same number
-        assert float(cells[i]) == pytest.approx(printed[col], rel=6e-4, abs=1e-12), col
+    for key, row in rows.items():
+        capsys.readouterr()
+        assert main(["simulate", *_simulate_args(key), "--plant", "linear", "--reference",
+                     "step:0.1", "--duration", "20", "--metrics"]) == 0, key
+        printed = _printed(capsys.readouterr().out)
+        row_start = html.index(f"<td>{escape(row['label'])}</td>", start)
+        cells = re.findall(r'<td class="num">([^<]*)</td>',
+                           html[row_start:html.index("</tr>", row_start)])
+        for i, col in enumerate(COLUMNS):
+            value = float(next(v for k, v in row.items() if k.startswith(col + " ")))
+            if math.isnan(value):  # e.g. never settled in the run: both say so
+                assert math.isnan(printed[col]) and cells[i] == "n/a", (key, col)
+                continue
+            # the same run through the same code; simulate prints 6 significant digits
+            assert value == pytest.approx(printed[col], rel=5e-6, abs=1e-12), (key, col)
+            # the report shows 4 significant digits of the same number
+            assert float(cells[i]) == pytest.approx(printed[col], rel=6e-4, abs=1e-12), col
 
 
 def test_changing_a_gain_changes_verdicts_or_evidence() -> None:
     cfg = StudyConfig(params=named_set("paper"), **SHORT)  # type: ignore[arg-type]
-    gains = _gains("linear")
-    base = run_plant_study("linear", cfg, gains)
-    gains["stfpi-os0"]["kdu"] *= 4.0
-    changed = run_plant_study("linear", cfg, gains)
+    designs = _designs("linear")
+    base = run_plant_study("linear", cfg, designs)
+    kind, gains = designs["stfpi-os0"]
+    designs["stfpi-os0"] = (kind, {**gains, "kdu": 4.0 * gains["kdu"]})
+    changed = run_plant_study("linear", cfg, designs)
     a = [(c.verdict, c.evidence) for c in base.claims]
     b = [(c.verdict, c.evidence) for c in changed.claims]
     assert a != b

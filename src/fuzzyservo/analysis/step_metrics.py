@@ -10,43 +10,15 @@ interpolation, so a time metric is exact to one sample period.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from typing import Protocol, cast
 
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray
-from ..errors import InputError, ParameterError
-from ..sim.stepinfo import METRIC_NAMES, N_METRICS, step_metrics_core
+from ..errors import InputError
+from ..sim.stepinfo import StepMetrics, metric_options, metrics_of
 
 __all__ = ["StepMetrics", "step_metrics"]
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class StepMetrics:
-    """Metrics of one step response; NaN where the data cannot define a metric.
-
-    Times are measured from the first sample ``t[0]``; "the span" is ``final_value -
-    initial_value``. See ``docs/model.md`` ("Step metrics") for the exact definitions.
-    """
-
-    rise_time: float  #: first sample at 90 % of the span minus first sample at 10 % [s]
-    settling_time: float  #: time from t[0] after which y stays within ±2 % of the span [s]
-    settling_time_5: float  #: as settling_time with a ±5 % band [s]
-    overshoot: float  #: largest excursion beyond final_value, in % of |span| [%]
-    peak: float  #: y at its largest excursion from initial_value [unit of y]
-    peak_time: float  #: time of that excursion from t[0] (first if repeated) [s]
-    steady_state_error: float  #: r - y at the last sample [unit of y]
-    iae: float  #: integral of |e|, e = r - y, trapezoid rule [unit of y · s]
-    ise: float  #: integral of e² [unit of y² · s]
-    itae: float  #: integral of (t - t[0]) |e| [unit of y · s²]
-    itse: float  #: integral of (t - t[0]) e² [unit of y² · s²]
-    u_max: float  #: largest |u| [unit of u]
-    u_sq_integral: float  #: integral of u², u zero-order held [unit of u² · s]
-    u_total_variation: float  #: sum of |u[k+1] - u[k]| [unit of u]
-
-    def as_dict(self) -> dict[str, float]:
-        """Return the metrics as ``{name: value}`` in the order of ``METRIC_NAMES``."""
-        return asdict(self)
 
 
 def _signal(name: str, value: ArrayLike, n: int | None) -> FloatArray:
@@ -78,16 +50,30 @@ def _finite(name: str, value: float) -> float:
     return v
 
 
-def _option(name: str, value: object) -> float:
-    try:
-        return float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise ParameterError(f"{name} must be a number, got {value!r:.60}") from exc
+class Run(Protocol):
+    """A single run with samples ``t``, ``y``, ``u``, ``r`` (a :class:`~fuzzyservo.sim.SimResult`
+    or a run CSV read by :func:`fuzzyservo.files.read_run_csv`)."""
+
+    @property
+    def t(self) -> FloatArray:
+        """Sample times [s]."""
+
+    @property
+    def y(self) -> FloatArray:
+        """Output [m]."""
+
+    @property
+    def u(self) -> FloatArray:
+        """Command [-]."""
+
+    @property
+    def r(self) -> FloatArray | None:
+        """Reference [m] (None: none)."""
 
 
 def step_metrics(
-    t: ArrayLike,
-    y: ArrayLike,
+    t: ArrayLike | Run,
+    y: ArrayLike | None = None,
     *,
     u: ArrayLike | None = None,
     r: ArrayLike | float | None = None,
@@ -99,12 +85,16 @@ def step_metrics(
 ) -> StepMetrics:
     """Compute the step-response metrics of a sampled response.
 
+    ``step_metrics(result)`` takes a single-run result (a ``SimResult``, or a run CSV read by
+    :func:`fuzzyservo.files.read_run_csv`) and uses its ``t``, ``y``, ``u`` and ``r``.
+
     Parameters
     ----------
-    t : array_like, shape (n,)
-        Sample times, finite and strictly increasing, ``n >= 2`` [s].
+    t : array_like, shape (n,), or a run
+        Sample times, finite and strictly increasing, ``n >= 2`` [s]; or a result with
+        ``t, y, u, r`` (then ``y``, ``u``, ``r`` must not be given).
     y : array_like, shape (n,)
-        Output samples [unit of y].
+        Output samples [unit of y]; required unless ``t`` is a run.
     u : array_like, shape (n,), optional
         Command samples, each held over ``[t[k], t[k+1])``; without it the ``u_*`` metrics
         are NaN [unit of u].
@@ -170,6 +160,16 @@ def step_metrics(
     >>> round(m.rise_time, 3), round(m.iae, 4)
     (2.197, 1.0)
     """
+    if hasattr(t, "t") and hasattr(t, "y"):
+        if y is not None or u is not None or r is not None:
+            raise InputError("step_metrics(result) takes y, u and r from the result; "
+                             "do not pass them too")
+        run = cast(Run, t)
+        return step_metrics(run.t, run.y, u=run.u, r=run.r, final_value=final_value,
+                            initial_value=initial_value, rise=rise, settle_band=settle_band,
+                            settle_band2=settle_band2)
+    if y is None:
+        raise InputError("step_metrics needs y (or a result with t, y, u, r)")
     tt = _signal("t", t, None)
     n = tt.shape[0]
     if n < 2:
@@ -182,16 +182,7 @@ def step_metrics(
             f"<= t[{k}] = {float(tt[k])}"
         )
     yy = _signal("y", y, n)
-    if np.ndim(rise) != 1 or len(rise) != 2:
-        raise ParameterError(f"rise must be a pair (lo, hi) of fractions, got {rise!r:.60}")
-    lo, hi = _option("rise[0]", rise[0]), _option("rise[1]", rise[1])
-    if not 0.0 <= lo < hi <= 1.0:
-        raise ParameterError(f"rise must satisfy 0 <= lo < hi <= 1, got ({lo}, {hi})")
-    band1 = _option("settle_band", settle_band)
-    band2 = _option("settle_band2", settle_band2)
-    for name, band in (("settle_band", band1), ("settle_band2", band2)):
-        if not 0.0 < band < 1.0:
-            raise ParameterError(f"{name} must be in (0, 1), got {band}")
+    options = metric_options(rise, settle_band, settle_band2)
 
     rr: FloatArray | None = None
     if r is not None:
@@ -209,10 +200,8 @@ def step_metrics(
     y0 = float(yy[0]) if initial_value is None else _finite("initial_value", initial_value)
     uu = np.empty(0) if u is None else _signal("u", u, n)
 
-    out = np.empty(N_METRICS)
-    step_metrics_core(
-        tt, yy, uu, np.full(n, yf) if rr is None else rr, y0, yf, lo, hi, band1, band2, out,
-    )  # fmt: skip
+    m = metrics_of(tt, yy, uu, np.full(n, yf) if rr is None else rr, y0=y0, y_final=yf,
+                   options=options)
     if r is None and final_value is None:
-        out[METRIC_NAMES.index("steady_state_error")] = math.nan
-    return StepMetrics(**dict(zip(METRIC_NAMES, out.tolist(), strict=True)))
+        return StepMetrics(**{**m.as_dict(), "steady_state_error": math.nan})
+    return m

@@ -10,18 +10,15 @@ target ``r[-1]`` and the initial value ``y[0]``, and prints one metric per line 
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import math
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from ..analysis.step_metrics import step_metrics
-from ..errors import InputError
+from ..files import read_run_csv
 
-__all__ = ["register", "run", "read_run_csv"]
+__all__ = ["REQUIRED_COLUMNS", "UNITS", "print_metrics", "register", "run"]
 
 #: Columns the command needs; others (``alpha``, plant states) are ignored.
 REQUIRED_COLUMNS: tuple[str, ...] = ("t", "r", "y", "u")
@@ -65,54 +62,19 @@ def register(subparsers: Any) -> None:
     parser.set_defaults(handler=run)
 
 
-def read_run_csv(path: Path) -> dict[str, np.ndarray]:
-    """Read the columns ``t, r, y, u`` of a run CSV as float arrays.
-
-    Raises
-    ------
-    InputError
-        The file cannot be read, has no header, lacks a required column or holds a value
-        that is not a number.
-    """
-    try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            rows = [row for row in csv.reader(fh) if row and not row[0].lstrip().startswith("#")]
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-        raise InputError(f"cannot read run CSV {str(path)!r}: {reason}") from exc
-    if not rows:
-        raise InputError(f"run CSV {str(path)!r} is empty; expected a header with t, r, y, u")
-    header = [name.strip() for name in rows[0]]
-    missing = [c for c in REQUIRED_COLUMNS if c not in header]
-    if missing:
-        raise InputError(
-            f"run CSV {str(path)!r} lacks column(s) {', '.join(missing)}; "
-            f"expected t, r, y, u (found {', '.join(header) or 'none'})"
-        )
-    columns: dict[str, np.ndarray] = {}
-    for name in REQUIRED_COLUMNS:
-        j = header.index(name)
-        values = np.empty(len(rows) - 1)
-        for i, row in enumerate(rows[1:]):
-            cell = row[j].strip() if j < len(row) else ""
-            try:
-                values[i] = float(cell)
-            except ValueError:
-                raise InputError(
-                    f"run CSV {str(path)!r} line {i + 2}, column {name!r}: {cell!r} is not a number"
-                ) from None
-        columns[name] = values
-    return columns
+def print_metrics(metrics: dict[str, float]) -> None:
+    """Print one metric per line: name, value (6 significant digits), unit."""
+    width = max(len(k) for k in metrics)
+    for name, value in metrics.items():
+        print(f"{name:<{width}}  {value:.6g} {UNITS[name]}")
 
 
 def run(args: argparse.Namespace) -> int:
     """Handle ``fuzzyservo metrics``: print the metrics of ``args.csv``; return 0."""
-    cols = read_run_csv(args.csv)
-    metrics = step_metrics(cols["t"], cols["y"], u=cols["u"], r=cols["r"]).as_dict()
+    run_data = read_run_csv(args.csv, REQUIRED_COLUMNS)
+    metrics = step_metrics(run_data).as_dict()
     if args.json:
         print(json.dumps({k: (None if math.isnan(v) else v) for k, v in metrics.items()}))
     else:
-        width = max(len(k) for k in metrics)
-        for name, value in metrics.items():
-            print(f"{name:<{width}}  {value:.6g} {UNITS[name]}")
+        print_metrics(metrics)
     return 0

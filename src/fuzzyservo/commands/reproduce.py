@@ -49,8 +49,9 @@ def register(subparsers: Any) -> None:
                              "committed ones)")
     parser.add_argument("--force", action="store_true",
                         help="recompute even what is cached in OUT/.cache")
-    parser.add_argument("--plant", choices=("linear", "nonlinear", "both"), default="both",
-                        help="which plant(s) to run (default both)")
+    parser.add_argument("--plant", choices=(*PLANTS, "both"), default="both",
+                        help=f"which plant(s) of the study to run: {', '.join(PLANTS)} or "
+                             f"both (default both)")
     parser.add_argument("--duration", type=float, default=20.0, metavar="S",
                         help="length of each run [s], at least 5 (default 20)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")

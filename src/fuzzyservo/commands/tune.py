@@ -1,8 +1,9 @@
 """``fuzzyservo tune``: automatic step-response tuning of a controller on the servo.
 
-``fuzzyservo tune --controller pid|pid2|fpi|stfpi --plant linear|nonlinear --objective itae
---max-overshoot 10 [--max-sse 0.2] [--max-u 1] [--seed 0] [--set paper] [--param ...]
-[--step 0.1] [--duration 10] [--ts 0.001] [--delay 0] --out gains.toml [--resume]``
+``fuzzyservo tune --controller NAME --plant NAME --objective itae --max-overshoot 10
+[--max-sse 0.2] [--max-u 1] [--seed 0] [--set paper] [--param ...] [--step 0.1]
+[--duration 10] [--ts 0.001] [--delay S|hose] --out gains.toml [--resume]``: any controller and
+plant of the registry; what is searched is the controller's registry entry.
 
 A progress bar per search stage goes to stderr. Ctrl-C writes the current population to
 ``OUT.partial.npz`` next to ``--out``; ``--resume`` continues from it.
@@ -17,43 +18,31 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..analysis.autotune import (
-    CONTROLLER_KINDS,
-    PLANT_KINDS,
-    Checkpoint,
-    TuningProgress,
-    TuningSetup,
-    load_checkpoint,
-    save_checkpoint,
-    tune_controller,
-    write_gains_toml,
-)
+from ..analysis.autotune import Checkpoint, TuningProgress, TuningSetup, tune_controller
 from ..analysis.tuning import OBJECTIVES, TuningConstraints
 from ..errors import ParameterError
-from ..paper import alpha_system, du_system
+from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gains_toml
 from ..plant import ServoParams
+from ..registry import controller_names
 from ._plantargs import add_plant_arguments, params_from_args, parse_param
+from ._runargs import add_delay_argument, add_plant_choice, delay_from_args
 
-__all__ = ["checkpoint_path", "register"]
-
-
-def checkpoint_path(out: Path) -> Path:
-    """Where an interrupted tuning for ``out`` keeps its population."""
-    return out.with_name(out.name + ".partial.npz")
+__all__ = ["register", "run"]
 
 
 def register(subparsers: Any) -> None:
     """Add the ``tune`` subcommand."""
     p = subparsers.add_parser(
         "tune", help="tune a controller by step-response search",
-        description="Tune PID, 2-DOF PID, fuzzy PI or self-tuning fuzzy PI gains on the "
-                    "linear or nonlinear servo by differential evolution over the batched "
-                    "simulator, and write them to a TOML file.")
-    p.add_argument("--controller", required=True, metavar="NAME",
-                   help=f"controller: {', '.join(CONTROLLER_KINDS)}")
-    p.add_argument("--plant", default="linear", metavar="NAME",
-                   help=f"plant: {', '.join(PLANT_KINDS)} (default linear)")
-    p.add_argument("--objective", default="itae", metavar="NAME",
+        description="Tune the gains of a controller (P, PI, PID, 2-DOF PID, fuzzy PI, "
+                    "self-tuning fuzzy PI) on a plant model by differential evolution over "
+                    "the batched simulator, and write them to a gains file (TOML) that "
+                    "'fuzzyservo simulate --gains FILE' runs.")
+    names = controller_names()
+    p.add_argument("--controller", required=True, choices=names, metavar="NAME",
+                   help=f"controller: {', '.join(names)}")
+    add_plant_choice(p, "linear")
+    p.add_argument("--objective", default="itae", choices=OBJECTIVES, metavar="NAME",
                    help=f"objective: {', '.join(OBJECTIVES)} (default itae)")
     p.add_argument("--max-overshoot", type=float, default=10.0, metavar="PERCENT",
                    help="largest allowed overshoot in percent (default 10)")
@@ -72,10 +61,7 @@ def register(subparsers: Any) -> None:
                    help="simulated time per run [s] (default 10)")
     p.add_argument("--ts", type=float, default=0.001, metavar="S",
                    help="controller sample period [s] (default 0.001)")
-    p.add_argument("--delay", type=float, default=None, metavar="S",
-                   help="transport (hose) delay on the command [s] (default: the parameter "
-                        "set's delay.transport_delay, as in simulate; 0 for none, as the "
-                        "paper's Figs. 4-7)")
+    add_delay_argument(p)
     p.add_argument("--start", type=float, default=0.5, metavar="FRACTION",
                    help="start position as a fraction of the stroke (default 0.5)")
     p.add_argument("--out", type=Path, required=True, metavar="FILE.toml",
@@ -99,7 +85,7 @@ def _setup(args: argparse.Namespace, params: ServoParams) -> TuningSetup:
         controller=args.controller, plant=args.plant, param_set=args.param_set,
         overrides=overrides, start=args.start, step=args.step, duration=args.duration,
         ts=args.ts,
-        delay=params.delay.transport_delay if args.delay is None else args.delay,
+        delay=delay_from_args(args.delay, params),
         objective=args.objective,
         constraints=TuningConstraints(max_overshoot=args.max_overshoot,
                                       max_steady_state_error=args.max_sse / 100.0,
@@ -153,8 +139,7 @@ def run(args: argparse.Namespace) -> int:
     resume = load_checkpoint(ckpt_file) if args.resume else None
     progress = _Progress(setup, args.quiet)
     try:
-        tuned = tune_controller(setup, params, du_system=du_system(),
-                                alpha_system=alpha_system(), progress=progress, resume=resume)
+        tuned = tune_controller(setup, params, progress=progress, resume=resume)
     except KeyboardInterrupt:
         progress.close()
         if progress.latest is not None:

@@ -21,6 +21,7 @@ from .fuzzy_pi import fuzzy_pi_step
 from .pid import pid_step
 
 __all__ = [
+    "KIND_COMMAND",
     "KIND_FUZZY_PI",
     "KIND_PID",
     "STATE_ALPHA",
@@ -34,6 +35,8 @@ __all__ = [
 KIND_PID = 0
 #: Kind code of the fuzzy PI (with or without self-tuning) in packed form.
 KIND_FUZZY_PI = 1
+#: Kind code of the open loop: the reference sample is the command (``control.command``).
+KIND_COMMAND = 2
 #: Length of every packed controller state vector.
 STATE_SIZE = 5
 #: Index of the gain-updating factor alpha in the packed state (NaN for the PID family).
@@ -73,9 +76,17 @@ class PackedController(Protocol):
     ``pack_gains(gains)`` packs one parameter row per row of ``gains``.
     """
 
-    dt: float
-    kind: int
-    gain_names: tuple[str, ...]
+    @property
+    def dt(self) -> float:
+        """Sample period [s]."""
+
+    @property
+    def kind(self) -> int:
+        """Kind code (:data:`KIND_PID`, :data:`KIND_FUZZY_PI`, :data:`KIND_COMMAND`)."""
+
+    @property
+    def gain_names(self) -> tuple[str, ...]:
+        """Names of the gain columns of :meth:`pack_gains`."""
 
     def pack(self) -> FloatArray:
         """Return the packed parameter vector used by :func:`controller_step`."""
@@ -115,7 +126,8 @@ def controller_step(
     Parameters
     ----------
     kind : int
-        :data:`KIND_PID` or :data:`KIND_FUZZY_PI`.
+        :data:`KIND_PID`, :data:`KIND_FUZZY_PI` or :data:`KIND_COMMAND` (``r`` is the
+        command; the open loop).
     p, s : ndarray
         Packed parameters and state (see the controller classes).
     r, y : float
@@ -125,6 +137,8 @@ def controller_step(
     """
     if kind == KIND_PID:
         return pid_step(p, s, r, y)
+    if kind == KIND_COMMAND:
+        return r
     return fuzzy_pi_step(p, s, r, y, du_rules, du_lims, a_rules, a_lims)
 
 

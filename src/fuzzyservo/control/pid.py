@@ -215,9 +215,7 @@ class PIDController:
 
     def tables(self) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
         """Placeholder rule tables (the PID family uses none; typed for the kernels)."""
-        rules = np.full((2, 2), -1, dtype=np.int64)
-        lims = np.array([-1.0, 1.0, -1.0, 1.0, 0.0, 1.0, 2.0, 0.0])
-        return rules, lims, rules.copy(), lims.copy()
+        return no_tables()
 
     def pack_state(self, state: object) -> FloatArray:
         """Packed state vector (integral, derivative, ed_prev, 0, alpha = NaN)."""
@@ -235,6 +233,13 @@ class PIDController:
         s = self.pack_state(state)
         u = pid_step(self.pack(), s, float(reference), float(measurement))
         return float(u), self.unpack_state(s)
+
+
+def no_tables() -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
+    """Placeholder rule tables for controllers without fuzzy systems (typed for the kernels)."""
+    rules = np.full((2, 2), -1, dtype=np.int64)
+    lims = np.array([-1.0, 1.0, -1.0, 1.0, 0.0, 1.0, 2.0, 0.0])
+    return rules, lims, rules.copy(), lims.copy()
 
 
 def p_controller(*, dt: float, kp: float, u_min: float = -1.0, u_max: float = 1.0

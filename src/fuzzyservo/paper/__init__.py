@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from .published import (
+    PAPER_PIDS,
     PHYSICAL_CHOICES,
     SET_NAMES,
     TABLE_A1,
+    PaperPID,
     named_set,
     paper_params,
     stiff_oil_params,
@@ -13,9 +15,11 @@ from .published import (
 from .rulebases import alpha_system, du_system
 
 __all__ = [
+    "PAPER_PIDS",
     "PHYSICAL_CHOICES",
     "SET_NAMES",
     "TABLE_A1",
+    "PaperPID",
     "alpha_system",
     "du_system",
     "named_set",

@@ -15,8 +15,9 @@ mid-stroke, and the tests re-check that independently.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 
 import numpy as np
 from scipy import optimize
@@ -35,9 +36,11 @@ from ..plant.params import (
 )
 
 __all__ = [
+    "PAPER_PIDS",
     "PHYSICAL_CHOICES",
     "SET_NAMES",
     "TABLE_A1",
+    "PaperPID",
     "PhysicalChoices",
     "TableA1",
     "named_set",
@@ -204,8 +207,33 @@ def stiff_oil_params(table: TableA1 = TABLE_A1,
     return with_mb(m_t, b_kn)
 
 
+#: The named parameter sets (``--set NAME``), each a function of the published data.
+_SETS: dict[str, Callable[[], ServoParams]] = {"paper": paper_params,
+                                                "stiff-oil": stiff_oil_params}
+
 #: Names accepted by :func:`named_set` and ``--set``.
-SET_NAMES: tuple[str, ...] = ("paper", "stiff-oil")
+SET_NAMES: tuple[str, ...] = tuple(_SETS)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PaperPID:
+    """A PID of the paper (Sec. IV, Figs. 4-5), parallel form, gains as printed.
+
+    The paper's gains were in volts of an unstated transducer and amplifier; used here as
+    gains per metre of error on a command that is a fraction of rated input (docs/model.md).
+    """
+
+    kp: float  #: K_P [1/m]
+    ki: float  #: K_I [1/(m s)]
+    kd: float  #: K_D [s/m]
+
+
+#: The paper's two PIDs, Sec. IV: "(K_P = 1.2, K_I = 1, K_D = 0.75)" (at most 10 % overshoot,
+#: no steady-state error) and "(K_P = 0.8, K_I = .55, K_D = 0.5)" (zero overshoot).
+PAPER_PIDS: Mapping[str, PaperPID] = MappingProxyType({
+    "pid_paper_1": PaperPID(kp=1.2, ki=1.0, kd=0.75),
+    "pid_paper_2": PaperPID(kp=0.8, ki=0.55, kd=0.5),
+})
 
 
 def named_set(name: str) -> ServoParams:
@@ -216,8 +244,9 @@ def named_set(name: str) -> ServoParams:
     ParameterError
         For an unknown name.
     """
-    if name == "paper":
-        return paper_params()
-    if name == "stiff-oil":
-        return stiff_oil_params()
-    raise ParameterError(f"unknown parameter set {name!r}; allowed: {', '.join(SET_NAMES)}")
+    try:
+        make = _SETS[name]
+    except (KeyError, TypeError):
+        raise ParameterError(f"unknown parameter set {name!r}; allowed: "
+                             f"{', '.join(SET_NAMES)}") from None
+    return make()

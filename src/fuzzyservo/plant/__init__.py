@@ -28,11 +28,13 @@ from .params import (
     to_dict,
     with_overrides,
 )
+from .zoh import DiscreteModel, discretize, split_delay
 
 __all__ = [
     "COMMAND_LIMIT",
     "CylinderParams",
     "DelayParams",
+    "DiscreteModel",
     "FluidParams",
     "LinearServo",
     "Linearization",
@@ -48,12 +50,14 @@ __all__ = [
     "Trim",
     "ValveParams",
     "allowed_names",
+    "discretize",
     "linearize",
     "load_toml",
     "pack",
     "rhs",
     "rk4_advance",
     "rk4_advance_ws",
+    "split_delay",
     "to_dict",
     "trim",
     "with_overrides",

@@ -12,12 +12,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg
 
 from .._typing import FloatArray
 from ..errors import ParameterError
 from .linearize import Linearization
 from .params import ServoParams
+from .zoh import DiscreteModel, discretize
 
 __all__ = ["LinearServo"]
 
@@ -55,6 +55,12 @@ class LinearServo:
         v = lin.params.valve
         return cls(K_o=lin.velocity_gain, omega_0=lin.omega_0, damping=lin.damping,
                    omega_v=v.omega_v, zeta_v=v.zeta_v, tau_v=v.tau_v)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the states of :meth:`state_space`, in order."""
+        names: tuple[str, ...] = ("spool", "spool_rate", "v", "a", "x")
+        return ("spool_lag", *names) if self.tau_v > 0.0 else names
 
     def transfer_function(self) -> tuple[FloatArray, FloatArray]:
         """Numerator and denominator of eq. (8), highest power first."""
@@ -101,14 +107,9 @@ class LinearServo:
         c[0, iv + 2] = 1.0
         return a, b, c, np.zeros((1, 1))
 
-    def discretize(self, dt: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """Zero-order-hold discretisation of :meth:`state_space` with sample time ``dt`` [s]."""
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise ParameterError(f"dt must be a finite number > 0 s, got {dt!r}")
-        a, b, c, d = self.state_space()
-        n = a.shape[0]
-        m = np.zeros((n + 1, n + 1))
-        m[:n, :n] = a
-        m[:n, n:] = b
-        e = linalg.expm(m * dt)
-        return e[:n, :n], e[:n, n:], c, d
+    def discretize(self, dt: float, delay: float = 0.0) -> DiscreteModel:
+        """Zero-order-hold discretisation of :meth:`state_space` at sample time ``dt`` [s],
+        with a transport ``delay`` [s] on the command (exact for any delay; see
+        :func:`fuzzyservo.plant.zoh.discretize`, the one ZOH of the package)."""
+        a, b, _, _ = self.state_space()
+        return discretize(a, b, dt, delay)

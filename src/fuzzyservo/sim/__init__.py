@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from .batch import simulate_batch
-from .closed_loop import PLANT_KINDS, LinearPlant, NonlinearPlant, Plant, make_plant, simulate
+from .closed_loop import DEFAULT_DELAY, LinearPlant, NonlinearPlant, Plant, simulate
 from .open_loop import OpenLoopResult, command_samples, simulate_open_loop
 from .references import (
     MultiStep,
@@ -20,11 +20,11 @@ from .result import BatchResult, SimResult
 from .stepinfo import METRIC_NAMES, N_METRICS, step_metrics_core
 
 __all__ = [
+    "DEFAULT_DELAY",
     "METRIC_NAMES",
     "N_METRICS",
     "BatchResult",
     "LinearPlant",
-    "PLANT_KINDS",
     "MultiStep",
     "NonlinearPlant",
     "OpenLoopResult",
@@ -39,7 +39,6 @@ __all__ = [
     "command_samples",
     "parse_reference",
     "sample_reference",
-    "make_plant",
     "simulate",
     "simulate_batch",
     "simulate_open_loop",

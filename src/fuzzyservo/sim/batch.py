@@ -15,7 +15,6 @@ Example (``ctl`` a controller, ``gains`` one row per run, ``plant`` a LinearPlan
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numba
@@ -24,7 +23,9 @@ import numpy as np
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..control.base import PackedController
 from ..errors import ParameterError
+from ..plant.zoh import split_delay
 from .closed_loop import (
+    DEFAULT_DELAY,
     LinearPlant,
     NonlinearPlant,
     Plant,
@@ -32,7 +33,6 @@ from .closed_loop import (
     profile,
     run_linear,
     run_nonlinear,
-    split_delay,
     time_grid,
 )
 from .closed_loop import (
@@ -40,7 +40,7 @@ from .closed_loop import (
 )
 from .references import Reference, sample_reference
 from .result import BatchResult
-from .stepinfo import METRIC_NAMES, N_METRICS, step_metrics_core
+from .stepinfo import METRIC_NAMES, N_METRICS, metric_options, step_metrics_core
 
 __all__ = ["simulate_batch"]
 
@@ -59,7 +59,8 @@ def _fill_ref(rbuf: FloatArray, roff: FloatArray, y0: float) -> None:
 def _batch_linear(
     kind: int, cps: FloatArray, cs0: FloatArray,
     du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
-    lps: FloatArray, y0s: FloatArray, t: FloatArray, roff: FloatArray, noise: FloatArray,
+    lps: FloatArray, y0s: FloatArray, u0s: FloatArray, t: FloatArray, roff: FloatArray,
+    noise: FloatArray,
     keep: bool, y_tr: FloatArray, u_tr: FloatArray, a_tr: FloatArray,
     mopts: FloatArray, metrics: FloatArray, bad: IntArray, n_chunks: int,
 ) -> None:
@@ -82,6 +83,7 @@ def _batch_linear(
         ring = np.empty(d_max + 2)
         cs = np.empty(cs0.shape[1])
         no_x = np.empty((0, nx_max))
+        no_xop = np.zeros(nx_max)
         no_noise = np.empty(0)
         for i in range(lo, hi):
             nx = int(lps[i, 0])
@@ -100,8 +102,8 @@ def _batch_linear(
                 av = abuf
             nz = noise[i] if noise.shape[0] > 0 else no_noise
             bad[i] = run_linear(kind, cps[i], cs, du_rules, du_lims, a_rules, a_lims,
-                                lps[i], rbuf, nz, y0s[i], x[:nx], xn[:nx], ring,
-                                yv, uv, av, no_x[:, :nx])
+                                lps[i], u0s[i], no_xop[:nx], rbuf, nz, y0s[i], x[:nx],
+                                xn[:nx], ring, yv, uv, av, no_x[:, :nx])
             if bad[i] >= 0:
                 for m in range(metrics.shape[1]):
                     metrics[i, m] = np.nan
@@ -185,7 +187,7 @@ def simulate_batch(
     plant: Plant | Sequence[Plant],
     reference: Reference | ArrayLike,
     duration: float,
-    delay: float | ArrayLike = 0.0,
+    delay: float | ArrayLike = DEFAULT_DELAY,
     disturbance: ArrayLike | None = None,
     noise_std: float = 0.0,
     rng: np.random.Generator | None = None,
@@ -262,7 +264,7 @@ def simulate_batch(
     if len(plants) == 1 and n > 1:
         plants = plants * n
     y0s = np.array([p.y0 for p in plants], dtype=np.float64)
-    u0s = np.array([p.u0 if isinstance(p, NonlinearPlant) else 0.0 for p in plants])
+    u0s = np.array([p.u0 for p in plants], dtype=np.float64)
     cs0 = np.vstack([controller.rest_states(cps[i:i + 1], y0s[i], u0s[i]) for i in range(n)]) \
         if len(set(y0s.tolist())) > 1 or len(set(u0s.tolist())) > 1 \
         else controller.rest_states(cps, float(y0s[0]), float(u0s[0]))
@@ -274,12 +276,7 @@ def simulate_batch(
     y_tr, u_tr, a_tr = np.empty(shape), np.empty(shape), np.empty(shape)
     metrics = np.empty((n, N_METRICS))
     bad = np.empty(n, dtype=np.int64)
-    if not (0.0 <= rise[0] < rise[1] <= 1.0):
-        raise ParameterError(f"rise thresholds need 0 <= lo < hi <= 1, got {rise!r}")
-    for name, band in (("settle_band", settle_band), ("settle_band_2", settle_band_2)):
-        if not (math.isfinite(band) and 0.0 < band < 1.0):
-            raise ParameterError(f"{name} must be in (0, 1), got {band!r}")
-    mopts = np.array([rise[0], rise[1], settle_band, settle_band_2])
+    mopts = np.array(metric_options(rise, settle_band, settle_band_2))
     tabs = controller.tables()
     chunks = _chunks(n)
     if isinstance(plants[0], LinearPlant):
@@ -297,7 +294,7 @@ def simulate_batch(
         lps = np.zeros((n, width))
         for i, row in enumerate(rows):
             lps[i, :row.size] = row
-        _batch_linear(controller.kind, cps, cs0, *tabs, lps, y0s, t, roff, noise, keep,
+        _batch_linear(controller.kind, cps, cs0, *tabs, lps, y0s, u0s, t, roff, noise, keep,
                       y_tr, u_tr, a_tr, mopts, metrics, bad, chunks)
     else:
         nl = [p for p in plants if isinstance(p, NonlinearPlant)]

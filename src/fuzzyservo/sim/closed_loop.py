@@ -8,10 +8,10 @@ the initial (trim) command. With τ = d T_s + f, 0 <= f < T_s, the plant input o
 
 Plants:
 
-- :class:`LinearPlant`: continuous state space (A, B, C), discretised exactly by zero-order
-  hold, with the fractional delay handled exactly (Åström & Wittenmark, *Computer-Controlled
-  Systems*, sec. 2.3): x_{k+1} = Φ x_k + Γ_0 u_{k-d} + Γ_1 u_{k-d-1}, Φ = e^{A T_s},
-  Γ_0 = ∫_0^{T_s - f} e^{As} ds B, Γ_1 = e^{A (T_s - f)} ∫_0^f e^{As} ds B.
+- :class:`LinearPlant`: continuous state space (A, B, C) about an operating point,
+  discretised exactly by zero-order hold with the fractional delay handled exactly by
+  :func:`fuzzyservo.plant.zoh.discretize` (the package's one ZOH):
+  x_{k+1} = Φ x_k + Γ_0 u_{k-d} + Γ_1 u_{k-d-1}.
 - :class:`NonlinearPlant`: the two-chamber model of :mod:`fuzzyservo.plant.nonlinear`,
   integrated with its RK4 (``rk4_advance_ws``) between samples, the interval split at t_k + f
   so the delayed command switches exactly; the load force F_ext may follow a profile.
@@ -25,7 +25,7 @@ function the controllers' per-step ``step()`` uses.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numba
@@ -42,18 +42,19 @@ from ..plant.nonlinear import (
     pack,
     rk4_advance_ws,
 )
+from ..plant.zoh import discretize, split_delay
 from .references import Reference, sample_reference
 from .result import SimResult
 
 __all__ = [
+    "DEFAULT_DELAY",
     "MAX_SAMPLES",
-    "PLANT_KINDS",
     "LinearPlant",
     "NonlinearPlant",
     "Plant",
     "run_linear",
+    "run_loop",
     "run_nonlinear",
-    "make_plant",
     "simulate",
     "time_grid",
 ]
@@ -63,7 +64,11 @@ _S_X = STATE_NAMES.index("x")
 
 @dataclass(frozen=True, slots=True, eq=False)
 class LinearPlant:
-    """Linear plant dx/dt = A x + B u, y = C x (strictly proper), starting at rest at x = 0.
+    """Linear plant about an operating point, starting at rest there.
+
+    dx/dt = A dx + B (u - u0) and y = y0 + C dx, where dx is the deviation of the state from
+    the operating point ``x_op`` and y0 = C x_op. Results carry the absolute state
+    x_op + dx and the absolute output, as the nonlinear plant's do.
 
     Attributes
     ----------
@@ -72,15 +77,18 @@ class LinearPlant:
         C (n,) [m per state unit].
     state_names : tuple of str
         Names of the states (CSV columns).
-    y0 : float
-        Output at rest [m] (the position x = 0 stands for); 0 by default.
+    x_op : ndarray
+        Operating point, the state at rest (n,) [state units]; zeros when empty (default).
+    u0 : float
+        Command that holds the operating point [-]; 0 by default.
     """
 
     a: FloatArray  #: state matrix [1/s]
     b: FloatArray  #: input vector [state unit / s per unit command]
     c: FloatArray  #: output vector [m per state unit]
     state_names: tuple[str, ...] = ()  #: state names
-    y0: float = 0.0  #: output at rest [m]
+    x_op: FloatArray = field(default_factory=lambda: np.empty(0))  #: operating point [SI]
+    u0: float = 0.0  #: holding command [-]
 
     def __post_init__(self) -> None:
         a = np.atleast_2d(np.asarray(self.a, dtype=np.float64))
@@ -91,11 +99,19 @@ class LinearPlant:
             raise ParameterError(
                 f"linear plant needs A (n, n), B (n,), C (n,), got {a.shape}, {b.shape}, "
                 f"{c.shape}")
-        if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(c))):
-            raise ParameterError("linear plant matrices must be finite")
+        x_op = np.asarray(self.x_op, dtype=np.float64).reshape(-1)
+        if x_op.size == 0:
+            x_op = np.zeros(n)
+        if x_op.shape != (n,):
+            raise ParameterError(f"operating point x_op needs {n} values, got {x_op.shape}")
+        if not all(np.all(np.isfinite(m)) for m in (a, b, c, x_op)) or \
+                not math.isfinite(self.u0):
+            raise ParameterError("linear plant matrices, operating point and u0 must be finite")
         object.__setattr__(self, "a", a)
         object.__setattr__(self, "b", b)
         object.__setattr__(self, "c", c)
+        object.__setattr__(self, "x_op", x_op)
+        object.__setattr__(self, "u0", float(self.u0))
         if not self.state_names:
             object.__setattr__(self, "state_names", tuple(f"x{i}" for i in range(n)))
         elif len(self.state_names) != n:
@@ -112,118 +128,43 @@ class LinearPlant:
                    np.asarray(c, dtype=np.float64), **kw)
 
     @classmethod
-    def from_servo(cls, servo: Any) -> LinearPlant:
-        """From a :class:`fuzzyservo.plant.LinearServo` (eq. 8), states named after its blocks."""
+    def from_servo(cls, servo: Any, position: float = 0.0) -> LinearPlant:
+        """From a :class:`fuzzyservo.plant.LinearServo` (eq. 8) at rest at ``position`` [m]:
+        its block states, the position state ``x`` absolute, the others 0 at rest."""
         a, b, c, d = servo.state_space()
-        names: tuple[str, ...] = ("spool", "spool_rate", "v", "a", "x")
-        if a.shape[0] == 6:
-            names = ("spool_lag", *names)
-        return cls.from_state_space(a, np.ravel(b), np.ravel(c), d, state_names=names)
+        names: tuple[str, ...] = servo.state_names
+        x_op = np.zeros(len(names))
+        x_op[names.index("x")] = float(position)
+        return cls.from_state_space(a, np.ravel(b), np.ravel(c), d, state_names=names,
+                                    x_op=x_op)
+
+    @classmethod
+    def from_linearization(cls, lin: Any) -> LinearPlant:
+        """From a :class:`fuzzyservo.plant.Linearization`: the small-signal model around its
+        trim (states as the nonlinear model's, spool_lag dropped when τ_v = 0; chamber
+        pressures included), holding the trim command."""
+        keep = [STATE_NAMES.index(n) for n in lin.state_names]
+        return cls(np.asarray(lin.a), np.asarray(lin.b), np.asarray(lin.c),
+                   state_names=tuple(lin.state_names),
+                   x_op=np.asarray(lin.trim.state, dtype=np.float64)[keep],
+                   u0=float(lin.trim.command))
 
     @property
     def n_states(self) -> int:
         """Number of states."""
         return int(self.a.shape[0])
 
+    @property
+    def y0(self) -> float:
+        """Output at rest [m]: C x_op."""
+        return float(self.c @ self.x_op)
+
     def discretise(self, ts: float, delay: float) -> FloatArray:
-        """Packed ZOH discretisation with delay: [n, d, Φ (n·n), Γ0 (n), Γ1 (n), C (n)]."""
-        n = self.n_states
-        d = int(math.floor(delay / ts + 1e-9))
-        f = delay - d * ts
-        if f < 1e-9 * ts:
-            f = 0.0
-        phi_hf, g0 = _zoh(self.a, self.b, ts - f)
-        if f > 0.0:
-            phi_f, gf = _zoh(self.a, self.b, f)
-            phi = phi_hf @ phi_f
-            g1 = phi_hf @ gf
-        else:
-            phi, g1 = phi_hf, np.zeros(n)
-        return np.concatenate([[n, d], phi.ravel(), g0, g1, self.c])
-
-
-def _zoh(a: FloatArray, b: FloatArray, tau: float) -> tuple[FloatArray, FloatArray]:
-    """(e^{A tau}, ∫_0^tau e^{As} ds B) from one matrix exponential (Van Loan)."""
-    n = a.shape[0]
-    m = np.zeros((n + 1, n + 1))
-    m[:n, :n] = a * tau
-    m[:n, n] = b * tau
-    e = expm_pade13(m)
-    return e[:n, :n], e[:n, n].copy()
-
-
-_PADE13 = (64764752532480000.0, 32382376266240000.0, 7771770303897600.0,
-           1187353796428800.0, 129060195264000.0, 10559470521600.0, 670442572800.0,
-           33522128640.0, 1323241920.0, 40840800.0, 960960.0, 16380.0, 182.0, 1.0)
-_THETA13 = 5.371920351148152
-
-
-@numba.njit(cache=True, nogil=True)
-def _balance(a: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Diagonal similarity B = D⁻¹ A D with powers of two (exact), as LAPACK's gebal."""
-    b = a.copy()
-    n = b.shape[0]
-    d = np.ones(n)
-    converged = False
-    while not converged:
-        converged = True
-        for i in range(n):
-            c = 0.0
-            r = 0.0
-            for j in range(n):
-                if j != i:
-                    c += abs(b[j, i])
-                    r += abs(b[i, j])
-            if c == 0.0 or r == 0.0:
-                continue
-            f = 1.0
-            total = c + r
-            while c < r / 2.0:
-                c *= 2.0
-                r /= 2.0
-                f *= 2.0
-            while c >= r * 2.0:
-                c /= 2.0
-                r *= 2.0
-                f /= 2.0
-            if c + r < 0.95 * total:
-                converged = False
-                d[i] *= f
-                for j in range(n):
-                    b[j, i] *= f
-                    b[i, j] /= f
-    return b, d
-
-
-def expm_pade13(a: FloatArray) -> FloatArray:
-    """Matrix exponential: balancing, then scaling and squaring with the [13/13] Padé
-    approximant (Higham, SIAM J. Matrix Anal. Appl. 26(4), 2005).
-
-    Written with numpy's ``@`` and ``linalg.solve`` because scipy's LAPACK calls can stall
-    for milliseconds when its BLAS threads compete for a busy machine (a 1 ms closed-loop
-    run took 8 ms). Balancing matters here: eq. (8)'s matrix mixes ω_v² ≈ 5e5 with O(1)
-    entries, and without it the extra squarings cost three digits. Tests hold it to scipy's
-    ``expm`` at 1e-13 of the largest entry.
-    """
-    n = a.shape[0]
-    bal, d = _balance(np.asarray(a, dtype=np.float64))
-    norm = float(np.max(np.sum(np.abs(bal), axis=0))) if n else 0.0
-    s = max(0, int(math.ceil(math.log2(norm / _THETA13)))) if norm > _THETA13 else 0
-    x = bal / 2.0**s
-    b = _PADE13
-    ident = np.eye(n)
-    x2 = x @ x
-    x4 = x2 @ x2
-    x6 = x4 @ x2
-    u = x @ (x6 @ (b[13] * x6 + b[11] * x4 + b[9] * x2)
-             + b[7] * x6 + b[5] * x4 + b[3] * x2 + b[1] * ident)
-    v = (x6 @ (b[12] * x6 + b[10] * x4 + b[8] * x2)
-         + b[6] * x6 + b[4] * x4 + b[2] * x2 + b[0] * ident)
-    r: FloatArray = np.asarray(np.linalg.solve(v - u, v + u), dtype=np.float64)
-    for _ in range(s):
-        r = r @ r
-    out: FloatArray = r * d[:, None] / d[None, :]
-    return out
+        """Packed ZOH discretisation with delay (:func:`fuzzyservo.plant.zoh.discretize`):
+        [n, d, Φ (n·n), Γ0 (n), Γ1 (n), C (n)]."""
+        m = discretize(self.a, self.b, ts, delay)
+        return np.concatenate([[self.n_states, m.d], m.phi.ravel(), m.gamma0, m.gamma1,
+                               self.c])
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -288,24 +229,11 @@ class NonlinearPlant:
 
 Plant = LinearPlant | NonlinearPlant
 
-#: Plant kinds :func:`make_plant` builds.
-PLANT_KINDS: tuple[str, ...] = ("linear", "nonlinear")
-
-
-def make_plant(kind: str, params: Any, position: float | None = None) -> Plant:
-    """The plant of a parameter set, at rest at ``position`` [m] (default mid-stroke).
-
-    ``"linear"`` is eq. (8) with the K_o, ω₀ and δ ``fuzzyservo linearize`` reports at that
-    position; ``"nonlinear"`` is the two-chamber model started at its trim equilibrium.
-    """
-    from ..plant import LinearServo, linearize
-
-    pos = 0.5 * params.cylinder.stroke if position is None else float(position)
-    if kind == "linear":
-        return LinearPlant.from_servo(LinearServo.from_params(params, linearize(params, pos)))
-    if kind == "nonlinear":
-        return NonlinearPlant.from_params(params, pos)
-    raise ParameterError(f"unknown plant {kind!r}; allowed: {', '.join(PLANT_KINDS)}")
+#: The transport delay every entry point uses when none is given [s]: none. The paper's
+#: Figs. 4-7 and its tuning are without the hose delay; Fig. 8 adds it as a robustness test.
+#: A run with the parameter set's hose delay asks for it (``delay.transport_delay``, or
+#: ``--delay hose`` on the command line). docs/model.md, "The hose delay".
+DEFAULT_DELAY = 0.0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -328,16 +256,19 @@ def _delayed(ubuf: FloatArray, w: int, k: int, d: int, u_init: float) -> tuple[f
 def run_linear(
     kind: int, cp: FloatArray, cs: FloatArray,
     du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
-    lp: FloatArray, r: FloatArray, noise: FloatArray, y0: float,
-    x: FloatArray, xn: FloatArray, ubuf: FloatArray,
+    lp: FloatArray, u_op: float, x_op: FloatArray, r: FloatArray, noise: FloatArray,
+    y0: float, x: FloatArray, xn: FloatArray, ubuf: FloatArray,
     y_out: FloatArray, u_out: FloatArray, a_out: FloatArray, x_out: FloatArray,
 ) -> int:
     """One closed loop on a packed linear plant ``lp`` (see ``LinearPlant.discretise``).
 
-    ``cs`` (controller state) and ``x`` (plant state, start value) are updated in place;
-    ``ubuf`` is a ring buffer of at least d + 2 commands; ``noise`` is empty or one value per
-    sample; ``x_out`` is (len(r), n) to keep states or (0, n) not to. Returns the index of
-    the first sample with a non-finite state, or -1.
+    The plant propagates the deviation ``x`` from its operating point (start value, updated
+    in place) under the input u - ``u_op``; y = ``y0`` + C x; commands before t_0 are
+    ``u_op``; rows of ``x_out`` are the absolute states ``x_op`` + x. ``cs`` (controller
+    state) is updated in place; ``ubuf`` is a ring buffer of at least d + 2 commands;
+    ``noise`` is empty or one value per sample; ``x_out`` is (len(r), n) to keep states or
+    (0, n) not to. The plant is not advanced past the last sample. Returns the index of the
+    first sample with a non-finite state, or -1.
     """
     n = int(lp[0])
     d = int(lp[1])
@@ -347,6 +278,7 @@ def run_linear(
     o_c = o_g1 + n
     keep_x = x_out.shape[0] > 0
     has_noise = noise.shape[0] > 0
+    last = r.shape[0] - 1
     w = 0
     for k in range(r.shape[0]):
         y = y0
@@ -354,7 +286,7 @@ def run_linear(
             y += lp[o_c + i] * x[i]
         if keep_x:
             for i in range(n):
-                x_out[k, i] = x[i]
+                x_out[k, i] = x_op[i] + x[i]
         if not math.isfinite(y):
             return k
         if has_noise:
@@ -363,11 +295,15 @@ def run_linear(
         y_out[k] = y
         u_out[k] = u
         a_out[k] = cs[STATE_ALPHA]
+        if k == last:
+            break
         ubuf[w] = u
-        u0, u1 = _delayed(ubuf, w, k, d, 0.0)
+        u0, u1 = _delayed(ubuf, w, k, d, u_op)
         w += 1
         if w == ubuf.shape[0]:
             w = 0
+        u0 -= u_op
+        u1 -= u_op
         for i in range(n):
             acc = lp[o_g0 + i] * u0 + lp[o_g1 + i] * u1
             row = o_phi + i * n
@@ -406,6 +342,7 @@ def run_nonlinear(
             n1 = n_sub - 1 if n_sub > 1 else 1
     n0 = max(1, n_sub - n1)
     nx = x.shape[0]
+    last = r.shape[0] - 1
     w = 0
     for k in range(r.shape[0]):
         t = k * ts
@@ -421,6 +358,8 @@ def run_nonlinear(
         y_out[k] = y
         u_out[k] = u
         a_out[k] = cs[STATE_ALPHA]
+        if k == last:
+            break
         ubuf[w] = u
         u0, u1 = _delayed(ubuf, w, k, d, u_init)
         w += 1
@@ -468,13 +407,6 @@ def check_delay(delay: float) -> float:
     return float(delay)
 
 
-def split_delay(delay: float, ts: float) -> tuple[int, float]:
-    """(d, f) with delay = d ts + f, 0 <= f < ts."""
-    d = int(math.floor(delay / ts + 1e-9))
-    f = delay - d * ts
-    return d, (0.0 if f < 1e-9 * ts else f)
-
-
 def profile(values: ArrayLike | None, t: FloatArray, what: str) -> FloatArray:
     """A signal given per sample (array of len(t)) or as a callable of t; empty if None."""
     if values is None:
@@ -487,13 +419,64 @@ def profile(values: ArrayLike | None, t: FloatArray, what: str) -> FloatArray:
     return np.ascontiguousarray(arr)
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class RawRun:
+    """The arrays of one compiled run (internal: :func:`simulate` and the open loop)."""
+
+    y: FloatArray  #: measurement per sample [m]
+    u: FloatArray  #: command per sample [-]
+    alpha: FloatArray  #: α per sample [-]
+    x: FloatArray  #: plant state per sample (absolute) [SI]
+
+
+def run_loop(controller: PackedController, plant: Plant, r: FloatArray, *, delay: float,
+             disturbance: ArrayLike | None, noise: FloatArray, t: FloatArray,
+             what: str = "closed loop") -> RawRun:
+    """Run the compiled loop of ``plant`` (validated inputs; ``r`` absolute [m]; ``what``
+    names the run in a divergence message).
+
+    Raises
+    ------
+    SimulationDivergedError
+        The plant state became non-finite.
+    """
+    ts = float(controller.dt)
+    cp = controller.pack()
+    cs = controller.rest_states(cp[None, :], plant.y0, plant.u0)[0]
+    tabs = controller.tables()
+    n = t.size
+    y, u, a = np.empty(n), np.empty(n), np.empty(n)
+    if isinstance(plant, LinearPlant):
+        if disturbance is not None:
+            raise ParameterError("a load-force disturbance needs the nonlinear plant")
+        lp = plant.discretise(ts, delay)
+        nx = plant.n_states
+        x = np.zeros(nx)
+        xs = np.empty((n, nx))
+        ubuf = np.zeros(int(lp[1]) + 2)
+        bad = run_linear(controller.kind, cp, cs, *tabs, lp, plant.u0, plant.x_op, r, noise,
+                         plant.y0, x, np.empty(nx), ubuf, y, u, a, xs)
+        x = plant.x_op + x
+    else:
+        force = profile(disturbance, t, "disturbance")
+        d, f = split_delay(delay, ts)
+        x = plant.x0.copy()
+        xs = np.empty((n, x.size))
+        bad = run_nonlinear(controller.kind, cp, cs, *tabs, plant.packed.copy(), ts, d, f,
+                            plant.n_sub(ts), plant.u0, r, noise, force, x,
+                            np.empty((5, x.size)), np.zeros(d + 2), y, u, a, xs)
+    if bad >= 0:
+        raise_diverged(bad * ts, x, plant.state_names, what)
+    return RawRun(y=y, u=u, alpha=a, x=xs)
+
+
 def simulate(
     controller: PackedController,
     plant: Plant,
     reference: Reference | ArrayLike,
     *,
     duration: float,
-    delay: float = 0.0,
+    delay: float = DEFAULT_DELAY,
     disturbance: ArrayLike | None = None,
     noise_std: float = 0.0,
     rng: np.random.Generator | None = None,
@@ -503,16 +486,18 @@ def simulate(
     Parameters
     ----------
     controller : PIDController, FuzzyPIController or SelfTuningFuzzyPIController
-        The controller (its ``dt`` is T_s [s]).
+        The controller (its ``dt`` is T_s [s]); ``fuzzyservo.registry.build_controller``
+        builds any registered kind by name.
     plant : LinearPlant or NonlinearPlant
-        The plant, starting at rest.
+        The plant, starting at rest (``fuzzyservo.registry.build_plant`` by name).
     reference : Reference or array
         Reference offset from the start position [m]: a reference object or one value per
         sample.
     duration : float
         Simulated time [s], at least one sample.
     delay : float
-        Transport delay on the command [s], >= 0 (any value, not only multiples of T_s).
+        Transport delay on the command [s], >= 0 (any value, not only multiples of T_s);
+        default :data:`DEFAULT_DELAY` (none).
     disturbance : array or callable, optional
         External load force [N] per sample (nonlinear plant only), or a function of t.
     noise_std : float
@@ -523,6 +508,8 @@ def simulate(
     Returns
     -------
     SimResult
+        ``r`` and ``y`` are absolute positions [m] on every plant (start position plus the
+        reference offset; the measured position).
 
     Raises
     ------
@@ -538,38 +525,10 @@ def simulate(
     delay = check_delay(delay)
     r = sample_reference(reference, t) + plant.y0
     noise = _noise(noise_std, rng, (t.size,))
-    cp = controller.pack()
-    cs = controller.rest_states(cp[None, :], plant.y0, _u_init(plant))[0]
-    tabs = controller.tables()
-    n = t.size
-    y, u, a = np.empty(n), np.empty(n), np.empty(n)
-    if isinstance(plant, LinearPlant):
-        if disturbance is not None:
-            raise ParameterError("a load-force disturbance needs the nonlinear plant")
-        lp = plant.discretise(ts, delay)
-        nx = plant.n_states
-        x = np.zeros(nx)
-        xs = np.empty((n, nx))
-        ubuf = np.zeros(int(lp[1]) + 2)
-        bad = run_linear(controller.kind, cp, cs, *tabs, lp, r, noise, plant.y0,
-                         x, np.empty(nx), ubuf, y, u, a, xs)
-    else:
-        force = profile(disturbance, t, "disturbance")
-        d, f = split_delay(delay, ts)
-        x = plant.x0.copy()
-        xs = np.empty((n, x.size))
-        bad = run_nonlinear(controller.kind, cp, cs, *tabs, plant.packed.copy(), ts, d, f,
-                            plant.n_sub(ts), plant.u0, r, noise, force, x,
-                            np.empty((5, x.size)), np.zeros(d + 2), y, u, a, xs)
-    if bad >= 0:
-        raise_diverged(bad * ts, x, plant.state_names)
+    run = run_loop(controller, plant, r, delay=delay, disturbance=disturbance, noise=noise, t=t)
     info: dict[str, Any] = {"controller": controller, "plant": plant, "noise_std": noise_std}
-    return SimResult(t=t, r=r, y=y, u=u, alpha=a, x=xs, state_names=plant.state_names,
-                     ts=ts, delay=delay, info=info)
-
-
-def _u_init(plant: Plant) -> float:
-    return plant.u0 if isinstance(plant, NonlinearPlant) else 0.0
+    return SimResult(t=t, r=r, y=run.y, u=run.u, alpha=run.alpha, x=run.x,
+                     state_names=plant.state_names, ts=ts, delay=delay, info=info)
 
 
 def _noise(std: float, rng: np.random.Generator | None, shape: tuple[int, ...]) -> FloatArray:
@@ -582,9 +541,8 @@ def _noise(std: float, rng: np.random.Generator | None, shape: tuple[int, ...]) 
     return rng.normal(0.0, std, size=shape)
 
 
-def raise_diverged(t: float, x: FloatArray, names: tuple[str, ...]) -> None:
-    """Raise :class:`SimulationDivergedError` naming the time and the state."""
+def raise_diverged(t: float, x: FloatArray, names: tuple[str, ...],
+                   what: str = "closed loop") -> None:
+    """Raise :class:`SimulationDivergedError` naming the run, the time and the state."""
     state = ", ".join(f"{n}={float(v):.6g}" for n, v in zip(names, x, strict=False))
-    raise SimulationDivergedError(f"closed loop diverged at t = {t:.6g} s: state {state}")
-
-
+    raise SimulationDivergedError(f"{what} diverged at t = {t:.6g} s: state {state}")

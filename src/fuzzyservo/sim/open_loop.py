@@ -1,15 +1,15 @@
-"""Open-loop simulation of the servo: a compiled fixed-step RK4 path and a solve_ivp reference.
+"""Open-loop simulation of the servo: a command schedule through the closed loop's machinery.
 
-The command is a sequence sampled every ``dt`` and held in between (zero-order hold). The hose
-transport delay shifts it by ``delay`` (default ``delay.transport_delay`` of the parameter
-set), which must be a whole number of samples; before t = 0 the valve sees the holding command
-of the initial equilibrium, so a run starts at rest (:func:`fuzzyservo.plant.trim`). The
-sample grid and its limits are the closed loop's (:func:`fuzzyservo.sim.closed_loop.time_grid`).
+The command is a sequence sampled every ``dt`` and held in between (zero-order hold). An
+open-loop run is the closed loop of :mod:`fuzzyservo.sim.closed_loop` with the pass-through
+"controller" :class:`~fuzzyservo.control.command.CommandSchedule`: the same compiled loops, the
+same transport-delay handling (any delay, fractional ones exact), the same sample grid and
+limits, on any plant the registry builds (eq. (8), the small-signal linearisation, the
+nonlinear model). Before t = 0 the valve sees the plant's holding command, so a run starts at
+rest (:func:`fuzzyservo.plant.trim`).
 
-``plant="nonlinear"`` integrates :func:`fuzzyservo.plant.rhs` (the same njit function the
-closed loop uses); ``plant="linear"`` propagates the small-signal linearisation around the
-initial equilibrium exactly (ZOH), so its rows hold the trim plus the deviation and keep the
-same columns, pressures included.
+``method="solve_ivp"`` is the reference path for the nonlinear plant: scipy's adaptive
+integrators between the instants where the (delayed) command switches.
 """
 
 from __future__ import annotations
@@ -17,54 +17,88 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from pathlib import Path
+from typing import Literal, TextIO
 
-import numba
 import numpy as np
-from scipy import integrate, linalg
+from scipy import integrate
 
 from .._typing import ArrayLike, FloatArray
+from ..control.command import CommandSchedule
 from ..errors import InputError, ParameterError
-from ..plant import N_STATE, STATE_NAMES, ServoParams, linearize, pack, rhs, trim
-from ..plant.nonlinear import check_finite, rk4_advance_ws
-from .closed_loop import check_delay, time_grid
+from ..plant import COMMAND_LIMIT, N_STATE, rhs
+from ..plant.nonlinear import P_AF, P_G, P_L, P_PS, P_WV, check_finite
+from ..plant.zoh import split_delay
+from .closed_loop import DEFAULT_DELAY, NonlinearPlant, Plant, check_delay, run_loop, time_grid
+from .result import write_csv
 
 __all__ = ["OpenLoopResult", "command_samples", "simulate_open_loop"]
 
-PlantKind = Literal["nonlinear", "linear"]
 Method = Literal["rk4", "solve_ivp"]
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class OpenLoopResult:
     """Samples of an open-loop run at t_k = k dt, k = 0..N."""
 
-    t: FloatArray  #: sample times [s]
-    u: FloatArray  #: command issued at t_k (before the transport delay) [1]
-    states: FloatArray  #: (N+1, N_STATE) states, columns STATE_NAMES [SI]
-    params: ServoParams  #: parameters of the run
-    plant: str  #: "nonlinear" or "linear"
-    method: str  #: "rk4", "solve_ivp:<solver>" or "zoh" (linear)
+    t: FloatArray  #: sample times [s], (N+1,)
+    u: FloatArray  #: command issued at t_k, held to t_{k+1} (before the delay) [-], (N,)
+    y: FloatArray  #: measured position (transducer) [m], (N+1,)
+    states: FloatArray  #: (N+1, len(state_names)) absolute plant states [SI]
+    state_names: tuple[str, ...]  #: names of the state columns
+    plant: Plant  #: the plant simulated
+    delay: float  #: transport delay on the command [s]
+    method: str  #: "rk4" (nonlinear), "zoh" (linear plants) or "solve_ivp:<solver>"
+
+    def state(self, name: str) -> FloatArray:
+        """One state column by name [SI unit of that state].
+
+        Raises
+        ------
+        ParameterError
+            The plant has no state ``name`` (eq. (8) has no chamber pressures).
+        """
+        if name not in self.state_names:
+            raise ParameterError(f"this plant has no state {name!r}; its states: "
+                                 f"{', '.join(self.state_names)}")
+        return self.states[:, self.state_names.index(name)]
+
+    def to_csv(self, dest: str | Path | TextIO) -> None:
+        """Write columns ``t, u, y`` then the plant states (SI units; y and the position
+        absolute) to a path or an open text stream; u at t_k is the command held from t_k
+        (the last one repeated on the final row)."""
+        u = np.append(self.u, self.u[-1])
+        write_csv(dest, ["t", "u", "y", *self.state_names], [self.t, u, self.y, *self.states.T])
+
+    @property
+    def r(self) -> None:
+        """No reference in open loop (for code that handles closed and open runs alike)."""
+        return None
+
+    @property
+    def alpha(self) -> None:
+        """No self-tuning factor in open loop."""
+        return None
 
     @property
     def x(self) -> FloatArray:
         """Piston position [m]."""
-        return self.states[:, STATE_NAMES.index("x")]
+        return self.state("x")
 
     @property
     def v(self) -> FloatArray:
         """Piston velocity [m/s]."""
-        return self.states[:, STATE_NAMES.index("v")]
+        return self.state("v")
 
     @property
     def p_f(self) -> FloatArray:
         """Full-bore chamber pressure [Pa]."""
-        return self.states[:, STATE_NAMES.index("p_f")]
+        return self.state("p_f")
 
     @property
     def p_n(self) -> FloatArray:
         """Annulus chamber pressure [Pa]."""
-        return self.states[:, STATE_NAMES.index("p_n")]
+        return self.state("p_n")
 
 
 def command_samples(command: float | ArrayLike | Callable[[float], float], n: int,
@@ -72,12 +106,12 @@ def command_samples(command: float | ArrayLike | Callable[[float], float], n: in
     """The command held over each of the ``n`` sample intervals, as a float64 array.
 
     ``command`` is a constant, a sequence of ``n`` values, or a function of time [s] sampled
-    at k dt.
+    at k dt; every value is a fraction of the rated input in [-1, 1].
 
     Raises
     ------
     InputError
-        For a wrong length or a non-finite value.
+        For a wrong length, a non-finite value or one outside [-1, 1].
     """
     if callable(command):
         u = np.array([float(command(k * dt)) for k in range(n)], dtype=np.float64)
@@ -90,77 +124,48 @@ def command_samples(command: float | ArrayLike | Callable[[float], float], n: in
     if not np.all(np.isfinite(u)):
         k = int(np.argmin(np.isfinite(u)))
         raise InputError(f"command is not finite at t = {k * dt:.6g} s: {u[k]!r}")
+    if np.any(np.abs(u) > COMMAND_LIMIT):
+        k = int(np.argmax(np.abs(u) > COMMAND_LIMIT))
+        raise InputError(f"command at t = {k * dt:.6g} s is {float(u[k])}; it must be a "
+                         f"fraction of the rated input in [-1, 1]")
     return u
 
 
-@numba.njit(cache=True, nogil=True)
-def _run_rk4(x0: FloatArray, u_valve: FloatArray, p: FloatArray, dt: float, n_sub: int,
-             out: FloatArray) -> int:
-    """Fill out[k] with the state at k dt; return -1 or the first non-finite sample index."""
-    n = u_valve.shape[0]
-    x = x0.copy()
-    work = np.empty((5, x.shape[0]))
-    out[0, :] = x
-    for k in range(n):
-        ok = rk4_advance_ws(k * dt, x, u_valve[k], p, dt, n_sub, work)
-        out[k + 1, :] = x
-        if not ok:
-            return k + 1
-    return -1
-
-
-def _delay_samples(td: float, dt: float, what: str) -> int:
-    """The delay ``td`` [s] (named ``what`` in errors) in whole samples of ``dt``."""
-    d = round(td / dt)
-    if abs(d * dt - td) > 1e-9 * max(dt, td):
-        raise ParameterError(
-            f"{what} = {td!r} s is not a whole number of samples of dt = {dt!r} s; the open "
-            f"loop holds the command per sample, so choose dt dividing the delay"
-        )
-    return int(d)
-
-
 def simulate_open_loop(
-    params: ServoParams,
+    plant: Plant,
     command: float | ArrayLike | Callable[[float], float],
     *,
     duration: float,
     dt: float = 1.0e-3,
-    position: float | None = None,
-    delay: float | None = None,
-    plant: PlantKind = "nonlinear",
+    delay: float = DEFAULT_DELAY,
     method: Method = "rk4",
-    substep: float = 1.0e-4,
     solver: str = "DOP853",
     rtol: float = 1e-10,
 ) -> OpenLoopResult:
-    """Simulate the servo in open loop from rest at ``position`` (default mid-stroke).
+    """Simulate a plant in open loop from rest, under a held command schedule.
 
     Parameters
     ----------
-    params : ServoParams
-        Servo parameters.
+    plant : LinearPlant or NonlinearPlant
+        The plant at rest (``fuzzyservo.registry.build_plant``: ``linear`` eq. (8),
+        ``small-signal``, ``nonlinear``). The nonlinear plant's RK4 step bound is its
+        ``substep``.
     command : float, array or callable
-        Valve command, fraction of rated input, held over each sample (see
-        :func:`command_samples`) [1].
+        Valve command, fraction of rated input in [-1, 1], held over each sample (see
+        :func:`command_samples`) [-].
     duration : float
         Simulated time [s], at least one sample and at most
         :data:`fuzzyservo.sim.closed_loop.MAX_SAMPLES` samples; cut to whole samples (the
         grid of :func:`fuzzyservo.sim.closed_loop.time_grid`).
     dt : float
         Sample time of the command and of the output [s].
-    position : float, optional
-        Initial piston position inside the stroke [m]; default stroke/2.
-    delay : float, optional
-        Transport delay on the command [s], >= 0 and a whole number of samples; default
-        ``params.delay.transport_delay``.
-    plant : {"nonlinear", "linear"}
-        Nonlinear model, or its linearisation around the initial equilibrium.
+    delay : float
+        Transport delay on the command [s], >= 0, any value (fractions of a sample exact);
+        default :data:`~fuzzyservo.sim.closed_loop.DEFAULT_DELAY` (none).
     method : {"rk4", "solve_ivp"}
-        Compiled fixed-step RK4 (``substep`` bound), or scipy's ``solve_ivp`` with ``solver``
-        and ``rtol`` (the reference path; nonlinear plant only).
-    substep : float
-        Largest RK4 substep [s].
+        The compiled loop (RK4 on the nonlinear plant, exact ZOH on the linear ones), or
+        scipy's ``solve_ivp`` with ``solver`` and ``rtol`` (the reference path; nonlinear
+        plant only).
     solver : str
         ``solve_ivp`` method name ("DOP853", "LSODA", "Radau", ...).
     rtol : float
@@ -173,107 +178,96 @@ def simulate_open_loop(
     Raises
     ------
     ParameterError
-        For a non-positive ``dt``/``substep``, a ``duration`` shorter than one sample or of
-        too many samples, an unknown ``plant``/``method``, or a negative delay or one that is
-        not a whole number of samples.
+        A non-positive ``dt``, a ``duration`` shorter than one sample or of too many samples,
+        an unknown ``method``, ``solve_ivp`` on a linear plant, or a negative delay.
+    InputError
+        A command of the wrong length, not finite, or outside [-1, 1].
     SimulationDivergedError
         If the state becomes non-finite (the message names the time and the state).
     """
-    for name, value in (("dt", dt), ("substep", substep)):
-        if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
-            raise ParameterError(f"{name} must be a finite number > 0 s, got {value!r}")
-    if plant not in ("nonlinear", "linear"):
-        raise ParameterError(f"plant must be 'nonlinear' or 'linear', got {plant!r}")
     if method not in ("rk4", "solve_ivp"):
         raise ParameterError(f"method must be 'rk4' or 'solve_ivp', got {method!r}")
-    if position is None:
-        position = params.cylinder.stroke / 2.0
     t = time_grid(duration, dt)
+    delay = check_delay(delay)
     n = t.shape[0] - 1
-    if delay is None:
-        d = _delay_samples(params.delay.transport_delay, dt, "delay.transport_delay")
-    else:
-        d = _delay_samples(check_delay(delay), dt, "delay")
     u_cmd = command_samples(command, n, dt)
-    tr = trim(params, position)
-    u_valve = np.concatenate([np.full(d, tr.command), u_cmd])[:n]
-    if plant == "linear":
-        states = _run_linear(params, position, u_valve, dt)
-        used = "zoh"
-    elif method == "rk4":
-        p = pack(params)
-        n_sub = max(1, math.ceil(dt / substep - 1e-9))
-        states = np.empty((n + 1, N_STATE))
-        bad = _run_rk4(np.ascontiguousarray(tr.state), u_valve, p, dt, n_sub, states)
-        if bad >= 0:
-            check_finite(float(t[bad]), states[bad])
-        used = "rk4"
-    else:
-        states = _run_solve_ivp(params, tr.state, u_valve, dt, solver, rtol)
+    if method == "solve_ivp":
+        if not isinstance(plant, NonlinearPlant):
+            raise ParameterError("method 'solve_ivp' is the reference for the nonlinear plant; "
+                                 "the linear plants are discretised exactly (method 'rk4')")
+        states = _run_solve_ivp(plant, u_cmd, dt, delay, solver, rtol)
+        y = states[:, plant.state_names.index("x")].copy()
         used = f"solve_ivp:{solver}"
-    return OpenLoopResult(t=t, u=u_cmd, states=states, params=params, plant=plant, method=used)
+    else:
+        # the schedule is the "reference"; the last command is repeated for the final row
+        sched = np.append(u_cmd, u_cmd[-1])
+        run = run_loop(CommandSchedule(dt=dt), plant, sched, delay=delay, disturbance=None,
+                       noise=np.empty(0), t=t, what="open loop")
+        states, y = run.x, run.y
+        used = "rk4" if isinstance(plant, NonlinearPlant) else "zoh"
+    return OpenLoopResult(t=t, u=u_cmd, y=y, states=states, state_names=plant.state_names,
+                          plant=plant, delay=delay, method=used)
 
 
-def _state_scale(params: ServoParams) -> FloatArray:
-    ps = params.supply.pressure
-    return np.array([1.0, 1.0, params.valve.omega_v, ps, ps, params.cylinder.stroke,
-                     params.velocity_gain])
+def _state_scale(p: FloatArray) -> FloatArray:
+    """Typical magnitude of each nonlinear state, for absolute tolerances [SI]."""
+    ps = p[P_PS]
+    q = p[P_G] * math.sqrt(ps)  # orifice flow scale [m³/s]
+    return np.array([1.0, 1.0, p[P_WV], ps, ps, p[P_L], max(q / p[P_AF], 1e-6)])
 
 
-def _run_solve_ivp(params: ServoParams, x0: FloatArray, u_valve: FloatArray, dt: float,
+def _segments(u_cmd: FloatArray, u_hold: float, dt: float, delay: float
+              ) -> list[tuple[float, float, float, list[int]]]:
+    """Piecewise-constant valve input: (start [s], end [s], command, sample indices ending in
+    the segment), merging neighbours with equal commands."""
+    d, f = split_delay(delay, dt)
+    n = u_cmd.shape[0]
+
+    def held(j: int) -> float:
+        return float(u_cmd[j]) if j >= 0 else u_hold
+
+    pieces: list[tuple[float, float, float, list[int]]] = []
+    for k in range(n):
+        t0, t1 = k * dt, (k + 1) * dt
+        parts: list[tuple[float, float, float, list[int]]] = (
+            [(t0, t0 + f, held(k - d - 1), [])] if f > 0.0 else [])
+        parts.append((t0 + f, t1, held(k - d), [k + 1]))
+        for a, b, u, ends in parts:
+            if pieces and pieces[-1][2] == u:
+                pieces[-1] = (pieces[-1][0], b, u, pieces[-1][3] + ends)
+            else:
+                pieces.append((a, b, u, list(ends)))
+    return pieces
+
+
+def _run_solve_ivp(plant: NonlinearPlant, u_cmd: FloatArray, dt: float, delay: float,
                    solver: str, rtol: float) -> FloatArray:
-    p = pack(params)
-    n = u_valve.shape[0]
-    atol = rtol * _state_scale(params)
+    p = plant.packed
+    n = u_cmd.shape[0]
+    atol = rtol * _state_scale(p)
     out = np.empty((n + 1, N_STATE))
-    out[0] = x0
-    # integrate between the samples where the (delayed) command changes
-    change = [0] + [k for k in range(1, n) if u_valve[k] != u_valve[k - 1]] + [n]
-    x = np.array(x0, dtype=np.float64)
-    for a, b in zip(change[:-1], change[1:], strict=True):
-        uk = float(u_valve[a])
+    out[0] = plant.x0
+    x = plant.x0.copy()
+    for a, b, uk, ends in _segments(u_cmd, plant.u0, dt, delay):
 
         def f(tt: float, xx: FloatArray, uk: float = uk) -> FloatArray:
             dx = np.empty(N_STATE)
             rhs(tt, np.ascontiguousarray(xx), uk, p, dx)
             return dx
 
-        t_eval = np.arange(a + 1, b + 1) * dt
-        sol = integrate.solve_ivp(f, (a * dt, b * dt), x, method=solver, t_eval=t_eval,
+        times = [j * dt for j in ends]
+        if times and abs(times[-1] - b) <= 1e-9 * dt:
+            times[-1] = b  # the segment ends on that sample: no rounding past the span
+        else:
+            times.append(b)  # the state at the switch, where the next segment starts
+        sol = integrate.solve_ivp(f, (a, b), x, method=solver, t_eval=np.array(times),
                                   rtol=rtol, atol=atol)
-        if sol.status < 0 or sol.y.shape[1] != b - a:
-            check_finite(float(sol.t[-1]) if sol.t.size else a * dt,
+        if sol.status < 0 or sol.y.shape[1] != len(times):
+            check_finite(float(sol.t[-1]) if sol.t.size else a,
                          sol.y[:, -1] if sol.y.size else x)
-            raise InputError(f"solve_ivp failed at t = {a * dt:.6g} s: {sol.message}")
-        out[a + 1:b + 1] = sol.y.T
+            raise InputError(f"solve_ivp failed at t = {a:.6g} s: {sol.message}")
+        if ends:
+            out[ends] = sol.y[:, :len(ends)].T
         x = sol.y[:, -1].copy()
-        check_finite(b * dt, x)
-    return out
-
-
-def _run_linear(params: ServoParams, position: float, u_valve: FloatArray,
-                dt: float) -> FloatArray:
-    lin = linearize(params, position)
-    keep = [STATE_NAMES.index(nm) for nm in lin.state_names]
-    ns = len(keep)
-    m = np.zeros((ns + 1, ns + 1))
-    m[:ns, :ns] = lin.a
-    m[:ns, ns] = lin.b
-    e = linalg.expm(m * dt)
-    ad, bd = e[:ns, :ns], e[:ns, ns]
-    n = u_valve.shape[0]
-    z = np.zeros(ns)
-    out = np.empty((n + 1, N_STATE))
-    x0 = lin.trim.state
-    out[0] = x0
-    du = np.clip(u_valve, -1.0, 1.0) - lin.trim.command
-    lag = STATE_NAMES.index("spool_lag")
-    for k in range(n):
-        z = ad @ z + bd * du[k]
-        row = x0.copy()
-        row[keep] += z
-        if lag not in keep:
-            row[lag] = u_valve[k]
-        out[k + 1] = row
-    check_finite(n * dt, out[-1])
+        check_finite(b, x)
     return out

@@ -3,15 +3,39 @@
 from __future__ import annotations
 
 import csv
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
 from .._typing import BoolArray, FloatArray
+from .stepinfo import METRIC_NAMES, StepMetrics, metric_options, metrics_of
 
-__all__ = ["BatchResult", "SimResult"]
+__all__ = ["BatchResult", "SimResult", "write_csv"]
+
+#: Rows formatted per write call: bounds the text held in memory.
+_BLOCK = 4096
+
+
+def write_csv(dest: str | Path | TextIO, header: Sequence[str],
+              columns: Sequence[FloatArray]) -> None:
+    """Write a header row and the ``columns`` row by row, floats with ``repr`` (round-trip
+    exact), to a path or an open text stream (``sys.stdout`` for ``--out -``)."""
+    data = np.column_stack([np.asarray(c, dtype=np.float64) for c in columns])
+    if isinstance(dest, str | Path):
+        with Path(dest).open("w", newline="", encoding="utf-8") as fh:
+            _write_rows(fh, header, data)
+    else:
+        _write_rows(dest, header, data)
+
+
+def _write_rows(fh: TextIO, header: Sequence[str], data: FloatArray) -> None:
+    w = csv.writer(fh, lineterminator="\n")
+    w.writerow(list(header))
+    for a in range(0, data.shape[0], _BLOCK):
+        w.writerows([[repr(v) for v in row] for row in data[a:a + _BLOCK].tolist()])
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -24,9 +48,10 @@ class SimResult:
     t : ndarray
         Sample times [s], shape (n,).
     r : ndarray
-        Reference [m] (absolute: the plant's start position plus the reference offset).
+        Reference [m], an absolute position on every plant: the plant's start position plus
+        the reference offset.
     y : ndarray
-        Measured position [m] (including measurement noise, if any).
+        Measured position [m], absolute (including measurement noise, if any).
     u : ndarray
         Valve command [-], fraction of rated input.
     alpha : ndarray
@@ -54,16 +79,26 @@ class SimResult:
     delay: float
     info: dict[str, Any] = field(default_factory=dict)
 
-    def to_csv(self, path: str | Path) -> Path:
-        """Write columns ``t, r, y, u, alpha`` then the plant states; return the path."""
-        out = Path(path)
-        header = ["t", "r", "y", "u", "alpha", *self.state_names]
-        data = np.column_stack([self.t, self.r, self.y, self.u, self.alpha, self.x])
-        with out.open("w", newline="", encoding="utf-8") as fh:
-            w = csv.writer(fh)
-            w.writerow(header)
-            w.writerows([[repr(float(v)) for v in row] for row in data])
-        return out
+    def to_csv(self, dest: str | Path | TextIO) -> None:
+        """Write columns ``t, r, y, u, alpha`` then the plant states (SI units; r and y
+        absolute positions) to a path or an open text stream."""
+        write_csv(dest, ["t", "r", "y", "u", "alpha", *self.state_names],
+                  [self.t, self.r, self.y, self.u, self.alpha, *self.x.T])
+
+    def metrics(self, *, rise: tuple[float, float] = (0.1, 0.9), settle_band: float = 0.02,
+                settle_band2: float = 0.05) -> StepMetrics:
+        """Step metrics of the run (names :data:`~fuzzyservo.sim.METRIC_NAMES`), as
+        ``fuzzyservo.analysis.step_metrics(result)`` and ``simulate --metrics`` give them:
+        from y(0) to the final reference, e = r - y."""
+        opts = metric_options(rise, settle_band, settle_band2)
+        return metrics_of(self.t, self.y, self.u, self.r, y0=float(self.y[0]),
+                          y_final=float(self.r[-1]), options=opts)
+
+    def metric(self, name: str) -> float:
+        """One step metric by name (see :meth:`metrics`)."""
+        if name not in METRIC_NAMES:
+            raise KeyError(f"no metric {name!r}; metrics: {', '.join(METRIC_NAMES)}")
+        return self.metrics()[name]
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -12,17 +12,22 @@ defines each metric and says when it is NaN.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
 from .._typing import FloatArray
+from ..errors import ParameterError
 
 __all__ = [
     "METRIC_NAMES",
     "NO_STEP_RTOL",
     "N_METRICS",
     "SETTLE_HOLD_FRACTION",
+    "StepMetrics",
+    "metric_options",
+    "metrics_of",
     "step_metrics_core",
 ]
 
@@ -222,3 +227,77 @@ def step_metrics_core(
         out[_UMAX] = u_max
         out[_USQ] = u_sq
         out[_UTV] = u_tv
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StepMetrics:
+    """Metrics of one step response; NaN where the data cannot define a metric.
+
+    Times are measured from the first sample ``t[0]``; "the span" is ``final_value -
+    initial_value``. See ``docs/model.md`` ("Step metrics") for the exact definitions. The
+    fields are :data:`METRIC_NAMES`, in order.
+    """
+
+    rise_time: float  #: first sample at 90 % of the span minus first sample at 10 % [s]
+    settling_time: float  #: time from t[0] after which y stays within ±2 % of the span [s]
+    settling_time_5: float  #: as settling_time with a ±5 % band [s]
+    overshoot: float  #: largest excursion beyond final_value, in % of |span| [%]
+    peak: float  #: y at its largest excursion from initial_value [unit of y]
+    peak_time: float  #: time of that excursion from t[0] (first if repeated) [s]
+    steady_state_error: float  #: r - y at the last sample [unit of y]
+    iae: float  #: integral of |e|, e = r - y, trapezoid rule [unit of y · s]
+    ise: float  #: integral of e² [unit of y² · s]
+    itae: float  #: integral of (t - t[0]) |e| [unit of y · s²]
+    itse: float  #: integral of (t - t[0]) e² [unit of y² · s²]
+    u_max: float  #: largest |u| [unit of u]
+    u_sq_integral: float  #: integral of u², u zero-order held [unit of u² · s]
+    u_total_variation: float  #: sum of |u[k+1] - u[k]| [unit of u]
+
+    def as_dict(self) -> dict[str, float]:
+        """Return the metrics as ``{name: value}`` in the order of ``METRIC_NAMES``."""
+        return {n: float(getattr(self, n)) for n in METRIC_NAMES}
+
+    def __getitem__(self, name: str) -> float:
+        """One metric by its name in :data:`METRIC_NAMES`."""
+        if name not in METRIC_NAMES:
+            raise KeyError(f"no metric {name!r}; metrics: {', '.join(METRIC_NAMES)}")
+        return float(getattr(self, name))
+
+
+def _number(name: str, value: object) -> float:
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise ParameterError(f"{name} must be a number, got {value!r:.60}") from exc
+
+
+def metric_options(rise: tuple[float, float], settle_band: float,
+                   settle_band2: float) -> tuple[float, float, float, float]:
+    """Validate the metric options: ``(rise_lo, rise_hi, band, band2)`` as floats.
+
+    Raises
+    ------
+    ParameterError
+        ``rise`` is not a pair with 0 <= lo < hi <= 1, or a band is outside (0, 1).
+    """
+    if np.ndim(rise) != 1 or len(rise) != 2:
+        raise ParameterError(f"rise must be a pair (lo, hi) of fractions, got {rise!r:.60}")
+    lo, hi = _number("rise[0]", rise[0]), _number("rise[1]", rise[1])
+    if not 0.0 <= lo < hi <= 1.0:
+        raise ParameterError(f"rise must satisfy 0 <= lo < hi <= 1, got ({lo}, {hi})")
+    band1 = _number("settle_band", settle_band)
+    band2 = _number("settle_band2", settle_band2)
+    for name, band in (("settle_band", band1), ("settle_band2", band2)):
+        if not 0.0 < band < 1.0:
+            raise ParameterError(f"{name} must be in (0, 1), got {band}")
+    return lo, hi, band1, band2
+
+
+def metrics_of(t: FloatArray, y: FloatArray, u: FloatArray, r: FloatArray, *, y0: float,
+               y_final: float, options: tuple[float, float, float, float]) -> StepMetrics:
+    """:func:`step_metrics_core` on validated arrays (``u`` may be empty), as
+    :class:`StepMetrics`; ``options`` from :func:`metric_options`."""
+    out = np.empty(N_METRICS)
+    step_metrics_core(t, y, u, r, y0, y_final, options[0], options[1], options[2],
+                      options[3], out)
+    return StepMetrics(**dict(zip(METRIC_NAMES, out.tolist(), strict=True)))

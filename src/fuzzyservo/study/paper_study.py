@@ -24,19 +24,19 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray
-from ..analysis.step_metrics import step_metrics
-from ..control import FuzzyPIController, PIDController, SelfTuningFuzzyPIController
 from ..errors import ParameterError
-from ..paper import alpha_system, du_system
+from ..paper import PAPER_PIDS
 from ..plant import ServoParams, with_overrides
-from ..sim import LinearPlant, NonlinearPlant, SimResult, make_plant, simulate
+from ..registry import build_controller as registry_build_controller
+from ..registry import build_plant as registry_build_plant
+from ..registry import controller_kind
+from ..sim import DEFAULT_DELAY, Plant, SimResult, simulate
 from ..sim.batch import simulate_batch
 from ..sim.references import Step
 from .claims import Claim, evaluate_claims
 
 __all__ = [
     "CONTROLLER_KEYS",
-    "PAPER_PIDS",
     "ControllerCase",
     "PlantStudy",
     "StudyConfig",
@@ -64,11 +64,8 @@ TUNED_DESIGNS: dict[str, tuple[str, str]] = {
     "stfpi_10": ("stfpi", "self-tuning fuzzy PI (<= 10 %, like the PIDs)"),
 }
 
-#: The paper's two PIDs (Sec. IV), parallel form, gains (K_P, K_I, K_D).
-PAPER_PIDS: dict[str, tuple[float, float, float]] = {
-    "pid_paper_1": (1.2, 1.0, 0.75),
-    "pid_paper_2": (0.8, 0.55, 0.5),
-}
+#: A tuned design as the study takes it: (registered controller name, its gains).
+Design = tuple[str, Mapping[str, float]]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -87,6 +84,10 @@ class StudyConfig:
         Length of each run [s].
     ts : float
         Controller sample time [s].
+    delay : float
+        Transport delay of every run but Fig. 8's and the sweep's [s]: the package's one
+        default, ``DEFAULT_DELAY`` (none, as the paper's Figs. 4-7), so that a metrics row is
+        what ``fuzzyservo simulate`` prints with no extra flag.
     hose_delay : float or None
         Hose delay of Fig. 8 [s]; None takes the parameter set's ``delay.transport_delay``
         (Table A.1's 6 ms for the paper set).
@@ -101,6 +102,7 @@ class StudyConfig:
     step: float = 0.1
     duration: float = 20.0
     ts: float = 0.001
+    delay: float = DEFAULT_DELAY
     hose_delay: float | None = None
     delay_sweep: tuple[float, ...] = (0.0, 0.006, 0.01, 0.02, 0.03, 0.04, 0.05, 0.06, 0.08,
                                       0.1, 0.125, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.8,
@@ -112,6 +114,8 @@ class StudyConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise ParameterError(f"StudyConfig.{name} must be > 0, got {v!r}")
+        if not (math.isfinite(self.delay) and self.delay >= 0.0):
+            raise ParameterError(f"StudyConfig.delay must be >= 0 s, got {self.delay!r}")
         if self.duration < 10 * self.ts:
             raise ParameterError(
                 f"StudyConfig.duration must cover at least 10 samples, got {self.duration!r} s")
@@ -126,7 +130,7 @@ class StudyConfig:
 
 @dataclass(frozen=True, slots=True)
 class ControllerCase:
-    """A controller of the study: key, legend label, kind (pid|fpi|stfpi) and gains."""
+    """A controller of the study: key, legend label, registered controller name and gains."""
 
     key: str
     label: str
@@ -134,48 +138,35 @@ class ControllerCase:
     gains: dict[str, float]
 
 
-def study_cases(tuned: Mapping[str, Mapping[str, float]], pid_filter: float = 100.0
+def study_cases(tuned: Mapping[str, Design], pid_filter: float = 100.0
                 ) -> list[ControllerCase]:
-    """The study's controllers from the tuned gains.
+    """The study's controllers: the paper's PIDs and the tuned designs.
 
     ``tuned`` maps each gain-file name of :data:`TUNED_DESIGNS` ("pid", "pid2", "fpi-os0",
-    "stfpi-os0", "stfpi") to its gains (kp, ki, kd[, b, c, n] or ke, kde, kdu).
+    "stfpi-os0", "stfpi") to its design: the registered controller name and its gains. The
+    paper's PIDs are the registry's ``pid`` with the derivative filter ``pid_filter`` [1/s].
     """
     cases = []
-    for key, (kp, ki, kd) in PAPER_PIDS.items():
-        cases.append(ControllerCase(key, f"PID ({kp:g}, {ki:g}, {kd:g})", "pid",
-                                    {"kp": kp, "ki": ki, "kd": kd, "n": pid_filter,
-                                     "b": 1.0, "c": 1.0}))
+    for key, g in PAPER_PIDS.items():
+        cases.append(ControllerCase(key, f"PID ({g.kp:g}, {g.ki:g}, {g.kd:g})", "pid",
+                                    {"kp": g.kp, "ki": g.ki, "kd": g.kd, "n": pid_filter}))
     for key, (name, label) in TUNED_DESIGNS.items():
         if name not in tuned:
             raise ParameterError(f"tuned gains for {name!r} are missing")
-        g = {k: float(v) for k, v in tuned[name].items()}
-        kind = "pid" if name.startswith("pid") else name.split("-")[0]
-        if kind == "pid":
-            g.setdefault("n", pid_filter)
-            g.setdefault("b", 1.0)
-            g.setdefault("c", 1.0)
-        cases.append(ControllerCase(key, label, kind, g))
+        kind, gains = tuned[name]
+        full = controller_kind(kind).check_gains(gains, where=f"tuned design {name}: ")
+        cases.append(ControllerCase(key, label, kind, full))
     return cases
 
 
 def build_controller(case: ControllerCase, ts: float) -> Any:
-    """The controller object of a case at sample time ``ts`` [s]."""
-    if case.kind == "pid":
-        g = case.gains
-        return PIDController(dt=ts, kp=g["kp"], ki=g["ki"], kd=g["kd"], n=g["n"], b=g["b"],
-                             c=g["c"])
-    if case.kind == "fpi":
-        return FuzzyPIController.from_systems(du_system(), None, dt=ts, **case.gains)
-    if case.kind == "stfpi":
-        return SelfTuningFuzzyPIController.from_systems(du_system(), alpha_system(), dt=ts,
-                                                        **case.gains)
-    raise ParameterError(f"unknown controller kind {case.kind!r}; allowed: pid, fpi, stfpi")
+    """The controller object of a case at sample time ``ts`` [s], from the registry."""
+    return registry_build_controller(case.kind, case.gains, dt=ts)
 
 
-def build_plant(kind: str, params: ServoParams) -> LinearPlant | NonlinearPlant:
-    """The linear (eq. 8 at mid-stroke) or nonlinear plant, at rest at mid-stroke."""
-    return make_plant(kind, params)
+def build_plant(kind: str, params: ServoParams) -> Plant:
+    """The registered plant ``kind`` at rest at mid-stroke."""
+    return registry_build_plant(kind, params)
 
 
 def variants(kind: str, params: ServoParams) -> dict[str, ServoParams]:
@@ -196,7 +187,7 @@ def variants(kind: str, params: ServoParams) -> dict[str, ServoParams]:
 
 def metrics_dict(res: SimResult, step: float) -> dict[str, float]:
     """Step metrics of a run (the same call ``fuzzyservo simulate --metrics`` makes)."""
-    m = step_metrics(res.t, res.y, u=res.u, r=res.r).as_dict()
+    m = res.metrics().as_dict()
     m["steady_state_error_fraction"] = m["steady_state_error"] / step
     return m
 
@@ -230,7 +221,7 @@ def _failed(settling: float, diverged: bool) -> bool:
     return diverged or math.isnan(settling)
 
 
-def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Mapping[str, float]],
+def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
                     *, tick: Callable[[str], None] | None = None,
                     stfpi_overshoot_limit: float | None = None) -> PlantStudy:
     """Run every experiment of the study on one plant ("linear" or "nonlinear").
@@ -250,7 +241,7 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Mapping[str
     metrics: dict[str, dict[str, float]] = {}
     for case in cases:
         ctl = build_controller(case, cfg.ts)
-        runs[case.key] = simulate(ctl, plant, ref, duration=cfg.duration)
+        runs[case.key] = simulate(ctl, plant, ref, duration=cfg.duration, delay=cfg.delay)
         metrics[case.key] = metrics_dict(runs[case.key], cfg.step)
     done(f"{kind}: nominal runs")
 
@@ -265,7 +256,7 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Mapping[str
     failures: dict[str, list[float]] = {}
     for case in cases:
         ctl = build_controller(case, cfg.ts)
-        b = simulate_batch(ctl, np.tile(_gain_row(ctl), (delays.size, 1)),
+        b = simulate_batch(ctl, np.tile(_gain_row(case), (delays.size, 1)),
                            plant=plant, reference=ref, duration=cfg.duration, delay=delays)
         sweep[case.key] = {n: b.metric(n).copy() for n in ("overshoot", "settling_time",
                                                            "iae", "u_max")}
@@ -283,14 +274,15 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Mapping[str
     var_runs: dict[str, SimResult] = {}
     for case in cases:
         ctl = build_controller(case, cfg.ts)
-        b = simulate_batch(ctl, np.tile(_gain_row(ctl), (len(var_plants), 1)),
-                           plant=var_plants, reference=ref, duration=cfg.duration)
+        b = simulate_batch(ctl, np.tile(_gain_row(case), (len(var_plants), 1)),
+                           plant=var_plants, reference=ref, duration=cfg.duration,
+                           delay=cfg.delay)
         for i, name in enumerate(var_params):
             var_metrics[name][case.key] = _batch_metrics(b.metric_names, b.metrics[i],
                                                          cfg.step)
     for name, p in zip(var_params, var_plants, strict=True):
         var_runs[name] = simulate(build_controller(st_case, cfg.ts), p, ref,
-                                  duration=cfg.duration)
+                                  duration=cfg.duration, delay=cfg.delay)
     done(f"{kind}: changed plants")
 
     labels = {c.key: c.label for c in cases}
@@ -308,15 +300,7 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Mapping[str
                       variant_runs=var_runs, claims=claims)
 
 
-def _gain_row(ctl: Any) -> FloatArray:
-    """The controller's own gains as one batch row (columns ``ctl.gain_names``)."""
-    return np.array([float(getattr(ctl, n)) for n in ctl.gain_names], dtype=np.float64)
-
-
-def replace_gains(tuned: Mapping[str, Mapping[str, float]], name: str,
-                  **gains: float) -> dict[str, dict[str, float]]:
-    """A copy of ``tuned`` with some gains of controller ``name`` changed (for what-if runs)."""
-    out = {k: dict(v) for k, v in tuned.items()}
-    out[name].update(gains)
-    return out
+def _gain_row(case: ControllerCase) -> FloatArray:
+    """The case's gains as one batch row of its controller class (registry)."""
+    return controller_kind(case.kind).class_row(case.gains)
 

@@ -16,16 +16,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from ..analysis.autotune import (
-    TunedGains,
-    TuningSetup,
-    read_gains_toml,
-    stage_as_tuned,
-    tune_controller,
-    write_gains_toml,
-)
+from ..analysis.autotune import TunedGains, TuningSetup, stage_as_tuned, tune_controller
 from ..analysis.tuning import TuningConstraints
 from ..errors import InputError
+from ..files import read_gains_toml, write_gains_toml
 from ..paper import alpha_system, du_system
 from ..plant import to_dict
 from ..plots.figures import fig3
@@ -69,7 +63,6 @@ def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
     <= NO_OVERSHOOT_PCT %), by the paper's steps 1-3. Seed 0 throughout.
     """
     gains_dir.mkdir(parents=True, exist_ok=True)
-    du, al = du_system(), alpha_system()
     out: dict[str, TunedGains] = {}
     no_os = TuningConstraints(max_overshoot=NO_OVERSHOOT_PCT)
     jobs: list[tuple[str, TuningSetup]] = [
@@ -80,7 +73,7 @@ def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
                                   constraints=no_os)),
     ]
     for name, setup in jobs:
-        tuned = tune_controller(setup, params, du_system=du, alpha_system=al)
+        tuned = tune_controller(setup, params)
         out[name] = tuned
         write_gains_toml(gains_dir / f"{plant}-{name}.toml", tuned)
         if name.startswith("stfpi"):
@@ -145,7 +138,7 @@ def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
         else:
             tuned = load_tuned(plant, gains_dir or default_gains_dir())
         notes.update(_notes(plant, tuned))
-        gains = {name: dict(t.gains) for name, t in tuned.items()}
+        designs = {name: (t.controller, dict(t.gains)) for name, t in tuned.items()}
         key = _cache_key(plant, cfg, {n: repr(t) for n, t in tuned.items()}, version)
         path = cache / f"{plant}-{key}.pkl"
         if path.is_file() and not force:
@@ -155,7 +148,7 @@ def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
                 progress(f"{plant}: reused cached results ({path.name})")
         else:
             limit = tuned[TUNED_DESIGNS["stfpi"][0]].setup.constraints.max_overshoot
-            study = run_plant_study(plant, cfg, gains, tick=progress,
+            study = run_plant_study(plant, cfg, designs, tick=progress,
                                     stfpi_overshoot_limit=limit)
             tmp = path.with_suffix(".tmp")
             with tmp.open("wb") as fh:

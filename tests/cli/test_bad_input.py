@@ -37,16 +37,17 @@ def test_run_too_long_for_memory_is_rejected(tmp_path: Path,
     assert "samples" in err and "at most" in err
 
 
-def test_delay_defaults_to_the_parameter_set(tmp_path: Path,
-                                             capsys: pytest.CaptureFixture[str]) -> None:
-    """--delay omitted takes delay.transport_delay; an explicit --delay overrides it."""
+def test_delay_is_none_unless_asked(tmp_path: Path) -> None:
+    """--delay omitted is no delay, whatever the set's delay.transport_delay; --delay hose
+    takes delay.transport_delay; an explicit --delay S is S."""
     outs = {}
-    for tag, extra in (("set", ["--param", "delay.transport_delay=0.05"]),
+    for tag, extra in (("default", ["--param", "delay.transport_delay=0.05"]),
+                       ("hose", ["--delay", "hose", "--param", "delay.transport_delay=0.05"]),
                        ("explicit", ["--delay", "0.05"]), ("none", ["--delay", "0"])):
         out = tmp_path / f"{tag}.csv"
         assert main([*STFPI, "--out", str(out), *extra]) == 0
         outs[tag] = out.read_text()
-    assert outs["set"] == outs["explicit"] != outs["none"]
+    assert outs["default"] == outs["none"] != outs["explicit"] == outs["hose"]
 
 
 def test_tune_seed_must_be_non_negative(tmp_path: Path,

@@ -1,0 +1,190 @@
+"""Options shared by the commands that build a controller or a run: the registry's controller
+and plant names, ``--gains`` (a gains file or NAME=VALUE pairs), ``--delay`` (seconds or
+``hose``) and the controller options."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from ..analysis.autotune import TunedGains
+from ..errors import InputError, ParameterError
+from ..files import read_gains_toml
+from ..plant import ServoParams
+from ..registry import controller_kind, controller_names, plant_names
+from ..sim import DEFAULT_DELAY
+
+__all__ = [
+    "OPTION_FLAGS",
+    "ControllerChoice",
+    "add_controller_arguments",
+    "add_delay_argument",
+    "add_plant_choice",
+    "controller_from_args",
+    "delay_from_args",
+    "parse_gains_pairs",
+]
+
+#: Controller options on the command line -> keyword of the controller classes.
+OPTION_FLAGS: dict[str, str] = {
+    "anti_windup": "--anti-windup",
+    "initial_error": "--initial-error",
+    "de_per": "--de-per",
+    "filter_time": "--filter-time",
+}
+
+
+def add_plant_choice(parser: argparse.ArgumentParser | Any, default: str) -> None:
+    """``--plant NAME``, one of the registry's plants."""
+    names = plant_names()
+    parser.add_argument("--plant", choices=names, default=default, metavar="NAME",
+                        help=f"plant model: {', '.join(names)} (default {default}; "
+                             "docs/model.md, 'Plant models')")
+
+
+def add_delay_argument(parser: argparse.ArgumentParser | Any) -> None:
+    """``--delay S|hose``."""
+    parser.add_argument("--delay", default=None, metavar="S|hose",
+                        help="transport (hose) delay on the command [s], or 'hose' for the "
+                             "parameter set's delay.transport_delay (6 ms for the paper set); "
+                             f"default {DEFAULT_DELAY:g}, none, as everywhere in fuzzyservo")
+
+
+def delay_from_args(text: str | None, params: ServoParams) -> float:
+    """The delay [s] that ``--delay`` names (``None``: the default, none).
+
+    Raises
+    ------
+    ParameterError
+        Neither a finite number >= 0 nor ``hose``.
+    """
+    if text is None:
+        return DEFAULT_DELAY
+    if text.strip().lower() == "hose":
+        return float(params.delay.transport_delay)
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ParameterError(f"--delay must be a number of seconds >= 0 or 'hose' (the "
+                             f"parameter set's delay.transport_delay), got {text!r}")
+    return value
+
+
+def add_controller_arguments(parser: argparse.ArgumentParser | Any) -> None:
+    """``--controller``, ``--gains`` and the controller options."""
+    names = controller_names()
+    parser.add_argument("--controller", choices=names, default=None, metavar="NAME",
+                        help=f"controller: {', '.join(names)} (default: the gains file's)")
+    parser.add_argument("--gains", default=None, metavar="FILE.toml|NAME=VALUE,...",
+                        help="a gains file (what 'fuzzyservo tune' writes, e.g. "
+                             "src/fuzzyservo/data/gains/linear-stfpi.toml), or gains as "
+                             "NAME=VALUE pairs in SI units (pid: kp, ki, kd[, n]; pid2 adds "
+                             "b, c; fpi, stfpi: ke, kde, kdu)")
+    parser.add_argument("--anti-windup", default=None,
+                        choices=("clamping", "back-calculation", "none"),
+                        help="PID family: anti-windup scheme (default clamping)")
+    parser.add_argument("--initial-error", default=None, choices=("zero", "first"),
+                        help="fuzzy PIs: e(-1) = 0 or e(-1) = e(0) (default zero)")
+    parser.add_argument("--de-per", default=None, choices=("sample", "second"),
+                        help="fuzzy PIs: Δe per sample or per second (default sample)")
+    parser.add_argument("--filter-time", type=float, default=None, metavar="S",
+                        help="fuzzy PIs: measurement filter time constant [s] (default 0)")
+
+
+def parse_gains_pairs(text: str) -> dict[str, float]:
+    """Parse ``NAME=VALUE,...`` into floats (names lower-cased; each given once).
+
+    Raises
+    ------
+    ParameterError
+        An item without ``=``, a name given twice, or a value that is not a number.
+    """
+    gains: dict[str, float] = {}
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        name, sep, value = item.partition("=")
+        name = name.strip().lower()
+        if not sep or not name:
+            raise ParameterError(f"--gains expects a gains file (.toml) or NAME=VALUE pairs, "
+                                 f"got {item!r}")
+        if name in gains:
+            raise ParameterError(f"gain {name} is given twice in --gains; give each once")
+        try:
+            gains[name] = float(value)
+        except ValueError:
+            raise ParameterError(f"gain {name}: {value.strip()!r} is not a number") from None
+    return gains
+
+
+class ControllerChoice:
+    """What ``--controller``, ``--gains`` and ``--ts`` select."""
+
+    def __init__(self, kind: str, gains: dict[str, float], ts: float,
+                 source: TunedGains | None, path: Path | None) -> None:
+        self.kind = kind  #: registry name
+        self.gains = gains  #: every gain of the kind, checked [SI]
+        self.ts = ts  #: sample time [s]
+        self.source = source  #: the gains file's record, if one was read
+        self.path = path  #: the gains file, if one was read
+
+    def build(self, args: argparse.Namespace) -> Any:
+        """The controller, with the options given on the command line."""
+        kind = controller_kind(self.kind)
+        options = {}
+        for key, flag in OPTION_FLAGS.items():
+            value = getattr(args, key, None)
+            if value is None:
+                continue
+            if key not in kind.options:
+                raise ParameterError(f"{flag} does not apply to controller {self.kind} "
+                                     f"({kind.title})")
+            options[key] = value
+        return kind.build(self.gains, dt=self.ts, options=options)
+
+
+def _is_file(text: str) -> bool:
+    return text.lower().endswith(".toml") or ("=" not in text and Path(text).exists())
+
+
+def controller_from_args(args: argparse.Namespace, *, default_ts: float = 1e-3
+                         ) -> ControllerChoice:
+    """The controller kind, gains and sample time selected on the command line.
+
+    With a gains file the controller is the file's (``--controller``, if given, must agree)
+    and the sample time defaults to the file's ``tuning.ts`` (the fuzzy PIs' ``kde`` is per
+    sample). ``--ts`` overrides it.
+
+    Raises
+    ------
+    ParameterError, InputError
+        No controller, disagreeing names, bad gains, a bad sample time or an unreadable file.
+    """
+    text = args.gains
+    source: TunedGains | None = None
+    path: Path | None = None
+    if text is not None and _is_file(text):
+        path = Path(text)
+        source = read_gains_toml(path)
+        if args.controller is not None and args.controller != source.controller:
+            raise InputError(f"the gains file {text!r} is for controller {source.controller}, "
+                             f"not --controller {args.controller}; drop --controller or give "
+                             f"a file of that controller")
+        name = source.controller
+        gains = dict(source.gains)
+        ts = source.setup.ts if args.ts is None else args.ts
+    else:
+        if args.controller is None:
+            names = ", ".join(controller_names())
+            raise ParameterError(f"a closed loop needs --controller ({names}) or --gains "
+                                 f"FILE.toml, or --open-loop")
+        name = args.controller
+        gains = parse_gains_pairs(text or "")
+        ts = default_ts if args.ts is None else args.ts
+    if not (isinstance(ts, float | int) and math.isfinite(ts) and ts > 0.0):
+        raise ParameterError(f"--ts must be finite and > 0 s, got {ts!r}")
+    where = f"{str(path)!r}: " if path is not None else ""
+    checked = controller_kind(name).check_gains(gains, where=where)
+    return ControllerChoice(name, checked, float(ts), source, path)

@@ -1,0 +1,64 @@
+"""Tuning checkpoints: the population of an interrupted ``fuzzyservo tune``, to resume it.
+
+An ``.npz`` file with the population array and a JSON header, read back with
+``allow_pickle=False`` (data only).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..analysis.autotune import Checkpoint
+from ..errors import InputError
+
+__all__ = ["checkpoint_path", "load_checkpoint", "save_checkpoint"]
+
+
+def checkpoint_path(out: Path) -> Path:
+    """Where an interrupted tuning for the gains file ``out`` keeps its population."""
+    return out.with_name(out.name + ".partial.npz")
+
+
+def save_checkpoint(path: str | Path, ckpt: Checkpoint) -> Path:
+    """Write ``ckpt`` as an ``.npz`` file (population array plus a JSON header)."""
+    path = Path(path)
+    header = json.dumps({"controller": ckpt.controller, "plant": ckpt.plant,
+                         "objective": ckpt.objective, "seed": ckpt.seed, "stage": ckpt.stage,
+                         "generation": ckpt.generation,
+                         "done": {k: list(v) for k, v in ckpt.done.items()}})
+    try:
+        with path.open("wb") as fh:
+            np.savez(fh, population=np.asarray(ckpt.population, dtype=np.float64),
+                     header=np.array(header))
+    except OSError as exc:
+        raise InputError(f"cannot write checkpoint {str(path)!r}: {exc.strerror}") from exc
+    return path
+
+
+def load_checkpoint(path: str | Path) -> Checkpoint:
+    """Read a checkpoint written by :func:`save_checkpoint`.
+
+    Raises
+    ------
+    InputError
+        If the file is missing or not a checkpoint.
+    """
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            pop = np.asarray(z["population"], dtype=np.float64)
+            h = json.loads(str(z["header"]))
+        return Checkpoint(controller=str(h["controller"]), plant=str(h["plant"]),
+                          objective=str(h["objective"]), seed=int(h["seed"]),
+                          stage=str(h["stage"]), generation=int(h["generation"]),
+                          population=np.atleast_2d(pop),
+                          done={str(k): tuple(float(x) for x in v)
+                                for k, v in dict(h["done"]).items()})
+    except OSError as exc:
+        raise InputError(f"cannot read checkpoint {str(path)!r}: {exc.strerror or exc}"
+                         ) from exc
+    except (ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{str(path)!r} is not a tuning checkpoint ({exc})") from exc

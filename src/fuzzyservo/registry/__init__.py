@@ -1,0 +1,34 @@
+"""fuzzyservo.registry: the one vocabulary of controllers and plants a user can name.
+
+Every front end (command line, tuner, study, gains files, later export and sweeps) builds
+controllers and plants here and offers exactly these names.
+"""
+
+from __future__ import annotations
+
+from .controllers import (
+    CONTROLLERS,
+    ControllerKind,
+    GainSpec,
+    build_controller,
+    controller_kind,
+    controller_names,
+    default_systems,
+)
+from .plants import DEFAULT_SUBSTEP, PLANTS, PlantKind, build_plant, plant_kind, plant_names
+
+__all__ = [
+    "CONTROLLERS",
+    "DEFAULT_SUBSTEP",
+    "PLANTS",
+    "ControllerKind",
+    "GainSpec",
+    "PlantKind",
+    "build_controller",
+    "build_plant",
+    "controller_kind",
+    "controller_names",
+    "default_systems",
+    "plant_kind",
+    "plant_names",
+]

@@ -1,0 +1,374 @@
+"""The controller registry: every controller kind a user can name, registered once.
+
+Each :class:`ControllerKind` names a controller, its class (the maths, in
+:mod:`fuzzyservo.control`), its gains with units, defaults and tuning boxes, the class gains the
+kind fixes, the options it takes and how it is tuned. The command line (``simulate``, ``tune``),
+the tuner (:mod:`fuzzyservo.analysis.autotune`), the study, the gains files and every later
+front end build controllers through :func:`build_controller` and offer the names of
+:func:`controller_names`; none keeps a list of its own. Adding a kind is its maths plus one
+entry of :data:`CONTROLLERS` (docs/architecture.md, "Registries").
+
+Names follow MATLAB's ``pid`` / ``pid2`` objects: ``pid`` is the one-degree-of-freedom PID
+(setpoint weights b = c = 1), ``pid2`` the two-degree-of-freedom PID with setpoint weights b and
+c (I-PD is ``pid2`` with b = c = 0).
+
+Examples
+--------
+>>> from fuzzyservo.registry import build_controller
+>>> ctl = build_controller("pid2", {"kp": 20.0, "ki": 2.0, "kd": 0.1, "b": 0.0, "c": 0.0},
+...                        dt=1e-3)
+>>> (ctl.b, ctl.c, ctl.n)
+(0.0, 0.0, 100.0)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any, Literal
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..control import FuzzyPIController, PIDController, SelfTuningFuzzyPIController
+from ..control.fuzzy_pi import KernelSystem
+from ..errors import ParameterError
+from ..paper import alpha_system, du_system
+
+__all__ = [
+    "CONTROLLERS",
+    "ControllerKind",
+    "GainSpec",
+    "build_controller",
+    "controller_kind",
+    "controller_names",
+    "default_systems",
+]
+
+Controller = PIDController | FuzzyPIController
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GainSpec:
+    """One gain of a controller kind.
+
+    Parameters
+    ----------
+    name : str
+        Gain name as written in ``--gains`` and gains files.
+    unit : str
+        Unit of the gain (u is a fraction of the rated command, e in metres).
+    description : str
+        What the gain does.
+    default : float or None
+        Value when not given; None makes the gain required.
+    search : (float, float) or None
+        Tuning box [lower, upper] in ``unit``, or in ``unit`` per metre of step for a
+        ``per_step`` gain; None: not searched by the tuner.
+    log : bool
+        Search on a logarithmic scale.
+    per_step : bool
+        The box scales with 1/step (the error normalisation K_e: e_n = 1 at the step for
+        K_e = 1/step).
+    held : float or None
+        Value while tuning when not searched; None holds the default.
+    allow_inf : bool
+        ``inf`` is allowed (the derivative filter n: no filter).
+    """
+
+    name: str
+    unit: str
+    description: str
+    default: float | None = None
+    search: tuple[float, float] | None = None
+    log: bool = True
+    per_step: bool = False
+    held: float | None = None
+    allow_inf: bool = False
+
+    def check(self, value: float, where: str) -> float:
+        """``value`` as a float, validated (finite and >= 0; n: > 0 or inf)."""
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise ParameterError(f"{where}gain {self.name}: {value!r} is not a number") from None
+        if self.allow_inf:
+            if not (v > 0.0) or math.isnan(v):
+                raise ParameterError(f"{where}gain {self.name} must be > 0 (inf: none), got "
+                                     f"{v!r}")
+            return v
+        if not (math.isfinite(v) and v >= 0.0):
+            raise ParameterError(f"{where}gain {self.name} must be finite and >= 0, got {v!r}")
+        return v
+
+    def held_value(self) -> float:
+        """The value held while tuning when the gain is not searched."""
+        v = self.held if self.held is not None else self.default
+        if v is None:
+            raise ParameterError(f"gain {self.name} is neither searched nor has a value to hold")
+        return v
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ControllerKind:
+    """A controller a user can name: its maths (``cls``), gains, options and tuning.
+
+    Parameters
+    ----------
+    name : str
+        The name (``--controller NAME``, ``controller = "NAME"`` in gains files).
+    title : str
+        Short human name (legends, help).
+    cls : type
+        The controller class in :mod:`fuzzyservo.control`.
+    gains : tuple of GainSpec
+        The kind's gains, in the order they are written.
+    implied : mapping of str to float
+        Gains of ``cls`` that the kind fixes (``pid``: b = c = 1) [units of those gains].
+    options : tuple of str
+        Keyword options of ``cls`` the kind takes (anti-windup, fuzzy PI conventions, limits).
+    systems : tuple of str
+        Fuzzy systems the kind needs (``"du"``, ``"alpha"``).
+    tuning : {"search", "paper-steps"}
+        How :func:`fuzzyservo.analysis.autotune.tune_controller` tunes it: one search over
+        the searched gains, or the paper's steps 1-3 (Sec. III A) through ``stage_kind``.
+    stage_kind : str or None
+        For ``"paper-steps"``: the kind tuned in step 1 (it searches the same gains).
+    rise_gain : str or None
+        For ``"paper-steps"``: the output gain raised in step 2 until the rise time of step 1
+        is recovered.
+    """
+
+    name: str
+    title: str
+    cls: type[Any]
+    gains: tuple[GainSpec, ...]
+    implied: Mapping[str, float] = field(default_factory=dict)
+    options: tuple[str, ...] = ()
+    systems: tuple[str, ...] = ()
+    tuning: Literal["search", "paper-steps"] = "search"
+    stage_kind: str | None = None
+    rise_gain: str | None = None
+
+    @property
+    def gain_names(self) -> tuple[str, ...]:
+        """Names of the kind's gains, in order."""
+        return tuple(g.name for g in self.gains)
+
+    @property
+    def required(self) -> tuple[str, ...]:
+        """Gains without a default."""
+        return tuple(g.name for g in self.gains if g.default is None)
+
+    @property
+    def searched(self) -> tuple[str, ...]:
+        """Gains the tuner searches."""
+        return tuple(g.name for g in self.gains if g.search is not None)
+
+    def gain(self, name: str) -> GainSpec:
+        """The spec of gain ``name``."""
+        for g in self.gains:
+            if g.name == name:
+                return g
+        raise ParameterError(f"unknown gain {name!r} for controller {self.name}; allowed: "
+                             f"{', '.join(self.gain_names)}")
+
+    def check_gains(self, gains: Mapping[str, float], *, where: str = "") -> dict[str, float]:
+        """Every gain of the kind from ``gains``: validated, defaults filled in.
+
+        A gain the kind fixes (``implied``) is accepted when it has the fixed value, so a
+        ``pid`` gains file may say b = c = 1.
+
+        Raises
+        ------
+        ParameterError
+            An unknown gain, a fixed one with another value, a bad value or a missing
+            required gain (``where`` prefixes the message, e.g. the file name).
+        """
+        out: dict[str, float] = {}
+        for name, value in gains.items():
+            if name in self.implied:
+                if float(value) != self.implied[name]:
+                    raise ParameterError(
+                        f"{where}controller {self.name} ({self.title}) has {name} = "
+                        f"{self.implied[name]:g}, got {name} = {value!r}"
+                        + ("; use pid2 for setpoint weights" if name in ("b", "c") else ""))
+                continue
+            if name not in self.gain_names:
+                raise ParameterError(f"{where}unknown gain {name!r} for controller {self.name}; "
+                                     f"allowed: {', '.join(self.gain_names)}")
+            out[name] = self.gain(name).check(value, where)
+        missing = [n for n in self.required if n not in out]
+        if missing:
+            raise ParameterError(
+                f"{where}controller {self.name} needs gains {', '.join(missing)} "
+                f"(--gains {','.join(f'{n}=...' for n in self.required)})")
+        for g in self.gains:
+            if g.name not in out:
+                assert g.default is not None
+                out[g.name] = g.default
+        return {n: out[n] for n in self.gain_names}
+
+    def class_row(self, gains: Mapping[str, float]) -> FloatArray:
+        """One row of the class's gains (``cls.gain_names``, what batches take) from a
+        complete mapping of the kind's gains."""
+        merged = {**self.implied, **gains}
+        return np.array([merged[n] for n in self.cls.gain_names], dtype=np.float64)
+
+    def search_box(self, step: float) -> tuple[tuple[str, float, float, bool], ...]:
+        """The tuner's default box for a step of ``step`` [m]: (name, lower, upper, log)."""
+        out = []
+        for g in self.gains:
+            if g.search is not None:
+                scale = 1.0 / step if g.per_step else 1.0
+                out.append((g.name, g.search[0] * scale, g.search[1] * scale, g.log))
+        return tuple(out)
+
+    def held(self, overrides: Mapping[str, float] | None = None) -> dict[str, float]:
+        """Values of the gains the tuner does not search (``overrides`` replace some)."""
+        ov = dict(overrides or {})
+        return {g.name: float(ov.get(g.name, g.held_value())) for g in self.gains
+                if g.search is None}
+
+    def build(self, gains: Mapping[str, float], *, dt: float,
+              systems: Mapping[str, KernelSystem] | None = None,
+              options: Mapping[str, Any] | None = None) -> Any:
+        """The controller with ``gains`` (checked, defaults filled) at sample time ``dt`` [s].
+
+        ``systems`` replaces the fuzzy systems (default :func:`default_systems`); ``options``
+        are keyword options of the class that the kind takes (:attr:`options`).
+
+        Raises
+        ------
+        ParameterError
+            Bad gains, an option the kind does not take, or a missing fuzzy system.
+        """
+        options = dict(options or {})
+        bad = [o for o in options if o not in self.options]
+        if bad:
+            raise ParameterError(f"controller {self.name} takes no option {bad[0]!r}; its "
+                                 f"options: {', '.join(self.options) or 'none'}")
+        g = dict(zip(self.cls.gain_names, self.class_row(self.check_gains(gains)).tolist(),
+                     strict=True))
+        if not self.systems:
+            return self.cls(dt=dt, **g, **options)
+        fs = dict(default_systems(self.systems)) if systems is None else dict(systems)
+        missing = [s for s in self.systems if s not in fs]
+        if missing:
+            raise ParameterError(f"controller {self.name} needs the fuzzy system(s) "
+                                 f"{', '.join(missing)}")
+        alpha = fs.get("alpha") if "alpha" in self.systems else None
+        return self.cls.from_systems(fs["du"], alpha, dt=dt, **g, **options)
+
+    def template(self, *, dt: float, systems: Mapping[str, KernelSystem] | None = None,
+                 options: Mapping[str, Any] | None = None) -> Any:
+        """A controller of this kind whose gains a batch replaces row by row (required gains
+        set to 0)."""
+        return self.build({n: 0.0 for n in self.required}, dt=dt, systems=systems,
+                          options=options)
+
+
+def default_systems(names: tuple[str, ...] = ("du", "alpha")) -> dict[str, KernelSystem]:
+    """The paper's fuzzy systems by role: ``du`` (Fig. 3a) and ``alpha`` (Fig. 3b)."""
+    makers = {"du": du_system, "alpha": alpha_system}
+    return {n: makers[n]() for n in names}
+
+
+_PID_OPTIONS = ("anti_windup", "tracking_time", "u_min", "u_max")
+_FUZZY_OPTIONS = ("initial_error", "de_per", "filter_time", "u_min", "u_max")
+
+# Tuning boxes (docs/model.md, "Tuning"): PID gains span decades (log scale); the paper's PIDs
+# (0.5-1.2) sit inside. Fuzzy PI (model-notes §5.3): ke from 1/step (the error fills [-1, 1])
+# to 10/step, kde around the 4e3 that normalises a 0.26 m/s slew per 1 ms sample, two decades
+# either side, kdu up to where kdu kde K_v stays below ~4 1/s.
+_KP = GainSpec(name="kp", unit="1/m", description="proportional gain", search=(0.01, 100.0))
+_KI = GainSpec(name="ki", unit="1/(m s)", description="integral gain", search=(1e-3, 100.0))
+_KD = GainSpec(name="kd", unit="s/m", description="derivative gain", search=(1e-4, 10.0))
+_N = GainSpec(name="n", unit="1/s", description="derivative filter coefficient (inf: none)",
+              default=100.0, allow_inf=True)
+_KE = GainSpec(name="ke", unit="1/m", description="error scaling K_e", search=(1.0, 10.0),
+               per_step=True)
+_KDE = GainSpec(name="kde", unit="1/m per sample",
+                description="error-change scaling K_Δe (per sample; s/m with de_per=second)",
+                search=(10.0, 1e6))
+_KDU = GainSpec(name="kdu", unit="-", description="output scaling K_Δu", search=(1e-5, 1.0))
+
+_CONTROLLERS: dict[str, ControllerKind] = {
+    "p": ControllerKind(
+        name="p", title="P", cls=PIDController, gains=(_KP,),
+        implied={"ki": 0.0, "kd": 0.0, "n": 100.0, "b": 1.0, "c": 1.0}, options=_PID_OPTIONS),
+    "pi": ControllerKind(
+        name="pi", title="PI", cls=PIDController, gains=(_KP, _KI),
+        implied={"kd": 0.0, "n": 100.0, "b": 1.0, "c": 1.0}, options=_PID_OPTIONS),
+    "pid": ControllerKind(
+        name="pid", title="PID, 1-DOF", cls=PIDController, gains=(_KP, _KI, _KD, _N),
+        implied={"b": 1.0, "c": 1.0}, options=_PID_OPTIONS),
+    "pid2": ControllerKind(
+        name="pid2", title="PID, 2-DOF", cls=PIDController,
+        gains=(_KP, _KI, _KD, _N,
+               GainSpec(name="b", unit="-", description="setpoint weight, proportional path",
+                        default=1.0, search=(0.0, 1.0), log=False),
+               # c = 0 while tuning: no derivative kick, and c does not enter the integral of
+               # e = kp (1 - b)/ki that decides the overshoot on this plant (model-notes §5.1)
+               GainSpec(name="c", unit="-", description="setpoint weight, derivative path",
+                        default=1.0, held=0.0)),
+        options=_PID_OPTIONS),
+    "fpi": ControllerKind(
+        name="fpi", title="fuzzy PI", cls=FuzzyPIController, gains=(_KE, _KDE, _KDU),
+        options=_FUZZY_OPTIONS, systems=("du",)),
+    "stfpi": ControllerKind(
+        name="stfpi", title="self-tuning fuzzy PI", cls=SelfTuningFuzzyPIController,
+        gains=(_KE, _KDE, _KDU), options=_FUZZY_OPTIONS, systems=("du", "alpha"),
+        tuning="paper-steps", stage_kind="fpi", rise_gain="kdu"),
+}
+
+#: Every controller kind by name (read-only view of the registry).
+CONTROLLERS: Mapping[str, ControllerKind] = MappingProxyType(_CONTROLLERS)
+
+
+def controller_names() -> tuple[str, ...]:
+    """The registered controller names, in registry order."""
+    return tuple(_CONTROLLERS)
+
+
+def controller_kind(name: str) -> ControllerKind:
+    """The kind registered as ``name``.
+
+    Raises
+    ------
+    ParameterError
+        Unknown name (the message lists the registered ones).
+    """
+    try:
+        return _CONTROLLERS[name]
+    except (KeyError, TypeError):
+        raise ParameterError(f"unknown controller {name!r}; allowed: "
+                             f"{', '.join(_CONTROLLERS)}") from None
+
+
+def build_controller(name: str, gains: Mapping[str, float], *, dt: float,
+                     systems: Mapping[str, KernelSystem] | None = None,
+                     options: Mapping[str, Any] | None = None) -> Any:
+    """Build the controller registered as ``name`` (see :meth:`ControllerKind.build`).
+
+    Parameters
+    ----------
+    name : str
+        Registered name (:func:`controller_names`).
+    gains : mapping of str to float
+        The kind's gains in their units; missing ones take their defaults.
+    dt : float
+        Sample period [s].
+    systems : mapping, optional
+        Fuzzy systems by role (``du``, ``alpha``); default the paper's.
+    options : mapping, optional
+        Keyword options of the controller class that the kind takes (``anti_windup``,
+        ``initial_error``, ``de_per``, ``filter_time``, ``u_min``, ``u_max``, ...).
+
+    Returns
+    -------
+    PIDController, FuzzyPIController or SelfTuningFuzzyPIController
+    """
+    return controller_kind(name).build(gains, dt=dt, systems=systems, options=options)

@@ -1,0 +1,144 @@
+"""The plant registry: every plant model a user can name, registered once.
+
+Three models of the servo, each usable in open and in closed loop, all started at rest at a
+stroke position and all reporting absolute positions [m] (docs/model.md, "Plant models"):
+
+``linear``
+    The paper's eq. (8): valve (second order, optional lag), hydraulic second order with the
+    ω₀ and δ of the linearisation at the start position, integrator, and the large-signal
+    velocity gain K_o = Q_rated/A_f. States spool, spool_rate, v, a, x. No chamber pressures.
+``small-signal``
+    The numerical Jacobian of the nonlinear model around its trim at the start position
+    (Coulomb friction left out): the nonlinear model's states, chamber pressures included,
+    and its small-signal velocity gain (0.2095 m/s per unit command for the paper set, against
+    eq. (8)'s 0.2619).
+``nonlinear``
+    The two-chamber model with orifice flows, leakage, friction, end stops, supply ripple and
+    transducer resolution, integrated by RK4.
+
+The command line's ``--plant`` choices, the tuner, the study and every later front end build
+plants through :func:`build_plant`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+
+from ..errors import ParameterError
+from ..plant import LinearServo, ServoParams, linearize
+from ..sim import LinearPlant, NonlinearPlant, Plant
+
+__all__ = [
+    "DEFAULT_SUBSTEP",
+    "PLANTS",
+    "PlantKind",
+    "build_plant",
+    "plant_kind",
+    "plant_names",
+]
+
+#: RK4 step bound of the nonlinear plant [s]: two steps per 1 ms sample (ω_v h = 0.34);
+#: positions within 1e-6 of the step of a 25 µs-step run (tests/sim/test_closed_loop.py).
+DEFAULT_SUBSTEP = 5.0e-4
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PlantKind:
+    """A plant model a user can name.
+
+    Parameters
+    ----------
+    name : str
+        The name (``--plant NAME``).
+    title : str
+        Short description.
+    make : callable
+        ``make(params, position, substep) -> Plant``: the model at rest at ``position`` [m]
+        (``substep`` [s] is the RK4 step bound of a nonlinear plant, unused by linear ones).
+    force_input : bool
+        Whether the model takes a load-force disturbance.
+    """
+
+    name: str
+    title: str
+    make: Callable[[ServoParams, float, float], Plant]
+    force_input: bool = False
+
+
+def _linear(params: ServoParams, position: float, substep: float) -> Plant:
+    del substep
+    servo = LinearServo.from_params(params, linearize(params, position))
+    return LinearPlant.from_servo(servo, position)
+
+
+def _small_signal(params: ServoParams, position: float, substep: float) -> Plant:
+    del substep
+    return LinearPlant.from_linearization(linearize(params, position))
+
+
+def _nonlinear(params: ServoParams, position: float, substep: float) -> Plant:
+    return NonlinearPlant.from_params(params, position, substep=substep)
+
+
+_PLANTS: dict[str, PlantKind] = {
+    "linear": PlantKind(name="linear", title="eq. (8), linearised at the start position",
+                        make=_linear),
+    "small-signal": PlantKind(name="small-signal",
+                              title="small-signal linearisation of the nonlinear model",
+                              make=_small_signal),
+    "nonlinear": PlantKind(name="nonlinear", title="nonlinear two-chamber model (RK4)",
+                           make=_nonlinear, force_input=True),
+}
+
+#: Every plant kind by name (read-only view of the registry).
+PLANTS: Mapping[str, PlantKind] = MappingProxyType(_PLANTS)
+
+
+def plant_names() -> tuple[str, ...]:
+    """The registered plant names, in registry order."""
+    return tuple(_PLANTS)
+
+
+def plant_kind(name: str) -> PlantKind:
+    """The plant kind registered as ``name``.
+
+    Raises
+    ------
+    ParameterError
+        Unknown name (the message lists the registered ones).
+    """
+    try:
+        return _PLANTS[name]
+    except (KeyError, TypeError):
+        raise ParameterError(f"unknown plant {name!r}; allowed: {', '.join(_PLANTS)}") from None
+
+
+def build_plant(name: str, params: ServoParams, position: float | None = None, *,
+                substep: float = DEFAULT_SUBSTEP) -> Plant:
+    """Build the plant registered as ``name``, at rest at ``position``.
+
+    Parameters
+    ----------
+    name : str
+        Registered name (:func:`plant_names`): ``linear``, ``small-signal``, ``nonlinear``.
+    params : ServoParams
+        Servo parameters.
+    position : float, optional
+        Start position inside the stroke [m]; default mid-stroke.
+    substep : float
+        RK4 step bound of the nonlinear plant [s].
+
+    Returns
+    -------
+    LinearPlant or NonlinearPlant
+
+    Raises
+    ------
+    ParameterError
+        Unknown name, a position outside the stroke, or no equilibrium there.
+    """
+    kind = plant_kind(name)
+    pos = 0.5 * params.cylinder.stroke if position is None else float(position)
+    return kind.make(params, pos, substep)

@@ -1,0 +1,107 @@
+"""Gains files: TOML round trip, the committed files, controllers built from a file, and one
+clear error per bad file."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import pytest
+
+from fuzzyservo.analysis.autotune import TunedGains, TuningSetup, tune_controller
+from fuzzyservo.errors import InputError
+from fuzzyservo.files import load_controller, read_gains_toml, write_gains_toml
+from fuzzyservo.paper import named_set
+from fuzzyservo.registry import build_plant, controller_kind
+from fuzzyservo.sim import Step, simulate
+
+PARAMS = named_set("paper")
+GAINS_DIR = Path(__file__).resolve().parents[2] / "src" / "fuzzyservo" / "data" / "gains"
+
+
+@pytest.fixture(scope="module")
+def tuned_stfpi() -> TunedGains:
+    setup = TuningSetup(controller="stfpi", plant="linear", duration=3.0, popsize=4,
+                        maxiter=3)
+    return tune_controller(setup, PARAMS)
+
+
+def _same(a: float, b: float) -> bool:
+    return (math.isnan(a) and math.isnan(b)) or a == b
+
+
+def test_toml_round_trip(tmp_path: Path, tuned_stfpi: TunedGains) -> None:
+    path = write_gains_toml(tmp_path / "g.toml", tuned_stfpi)
+    back = read_gains_toml(path)
+    assert back.gains == tuned_stfpi.gains
+    assert back.setup == dataclasses.replace(tuned_stfpi.setup,
+                                             bounds=tuned_stfpi.setup.search_bounds())
+    assert all(_same(back.metrics[k], v) for k, v in tuned_stfpi.metrics.items())
+    assert [s.name for s in back.stages] == ["fpi", "rise", "refine"]
+    assert back.stage("rise").gains == tuned_stfpi.stage("rise").gains
+    assert (back.feasible, back.n_evaluations, back.version, back.date) == (
+        tuned_stfpi.feasible, tuned_stfpi.n_evaluations, tuned_stfpi.version,
+        tuned_stfpi.date)
+
+
+def test_committed_gain_files_load() -> None:
+    files = sorted(GAINS_DIR.glob("*.toml"))
+    assert len(files) == 12  # 6 designs of the paper study (study.runner.GAIN_FILES) x 2 plants
+    for f in files:
+        t = read_gains_toml(f)
+        design = "-os0" if f.stem.endswith("-os0") else ""
+        assert f.stem == f"{t.setup.plant}-{t.controller}{design}"
+        # the gains are exactly the registry kind's (a pid file's b = c = 1 are implied)
+        assert tuple(t.gains) == controller_kind(t.controller).gain_names
+        # "-os0": tuned for the paper's "no overshoot" (<= 0.5 %); the rest like its PID
+        limit = 0.5 if design else 10.0
+        assert t.setup.objective == "itae" and t.setup.constraints.max_overshoot == limit
+        assert t.feasible and t.metrics["overshoot"] <= limit + 1e-9
+
+
+@pytest.mark.parametrize("name", ["linear-pid", "linear-pid2", "nonlinear-stfpi-os0"])
+def test_controller_from_a_file_reproduces_its_tuned_run(name: str) -> None:
+    ctl, rec = load_controller(GAINS_DIR / f"{name}.toml")
+    assert ctl.dt == rec.setup.ts  # the file's sample time (kde is per sample)
+    s = rec.setup
+    plant = build_plant(s.plant, PARAMS, s.start * PARAMS.cylinder.stroke)
+    run = simulate(ctl, plant, Step(s.step), duration=s.duration, delay=s.delay)
+    # the tuner's batch and this single run are the same compiled loop; the linear plant
+    # now reports absolute positions (0.5 m + offset), so allow a few ulps of the sum
+    assert run.metric("itae") == pytest.approx(rec.metrics["itae"], rel=1e-12)
+    assert run.metric("overshoot") == pytest.approx(rec.metrics["overshoot"], rel=1e-9,
+                                                    abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("edit", "needle"),
+    [(lambda s: s.replace("kdu = ", "kdx = ", 1), "unknown gain 'kdx'"),
+     (lambda s: s.replace('objective = "itae"\n', "", 1), "tuning.objective"),
+     (lambda s: s.replace("seed = 0", 'seed = "zero"', 1), "tuning.seed"),
+     (lambda s: s.replace("[result]", "[result_]", 1), "result"),
+     (lambda s: s + "\n[[[", "not valid TOML"),
+     (lambda s: s.replace("ke = ", "ke = -", 1), "gain ke must be finite and >= 0"),
+     (lambda s: s.replace('controller = "stfpi"', 'controller = "lqr"', 1), "lqr")],
+)
+def test_bad_gains_file_names_the_key(tmp_path: Path, tuned_stfpi: TunedGains,
+                                      edit: object, needle: str) -> None:
+    path = write_gains_toml(tmp_path / "g.toml", tuned_stfpi)
+    assert callable(edit)
+    path.write_text(edit(path.read_text(encoding="utf-8")), encoding="utf-8")
+    with pytest.raises(InputError, match=needle.replace("[", r"\[")) as info:
+        read_gains_toml(path)
+    assert str(path) in str(info.value)
+
+
+def test_a_one_dof_pid_file_with_setpoint_weights_points_to_pid2(tmp_path: Path) -> None:
+    text = (GAINS_DIR / "linear-pid.toml").read_text(encoding="utf-8")
+    path = tmp_path / "w.toml"
+    path.write_text(text.replace("b = 1.0", "b = 0.5", 1), encoding="utf-8")
+    with pytest.raises(InputError, match="pid .*has b = 1, got b = 0.5; use pid2"):
+        read_gains_toml(path)
+
+
+def test_missing_gains_file(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match="nothere"):
+        read_gains_toml(tmp_path / "nothere.toml")
