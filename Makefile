@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed-stamp
 FLVENV := .venv-fuzzylite
 PIP_QUIET := $(if $(CI),-q,)
 
-.PHONY: all reproduce test lint bench clean clean-numba
+.PHONY: all reproduce test test-fast lint bench clean clean-numba
 
 all: test
 
@@ -34,13 +34,18 @@ lint: $(STAMP)
 test: lint
 	$(BIN)/python -m pytest -n 2 --dist loadgroup -q
 
+# the same without the tests marked slow (brute-force accuracy, the README's study and tuning
+# runs): a quick check while editing; CI and `make test` run everything
+test-fast: lint
+	$(BIN)/python -m pytest -n 2 --dist loadgroup -q -m "not slow"
+
 bench: $(STAMP) $(FLVENV)/.installed-stamp
 	$(BIN)/python benchmarks/run_all.py --fuzzylite-python $(FLVENV)/bin/python
 
 # numba's on-disk cache is invalidated by a change of the function's own file only, not of a
 # kernel it calls in another module: clear it after editing a kernel.
 clean-numba:
-	find src -name '*.nbi' -delete -o -name '*.nbc' -delete
+	find src tests benchmarks -name '*.nbi' -delete -o -name '*.nbc' -delete
 
 clean: clean-numba
 	rm -rf $(VENV) $(FLVENV) build *.egg-info src/*.egg-info .pytest_cache .mypy_cache .ruff_cache

@@ -16,11 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "fuzzy"))
-
-from fuzzy_exact_reference import brute_uniform, trapezoid_error_bound  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fuzzyservo.paper import alpha_system, du_system  # noqa: E402
+
+# the same module name as in the tests, so numba's on-disk cache serves both
+from tests.fuzzy.fuzzy_exact_reference import (  # noqa: E402
+    brute_uniform,
+    trapezoid_error_bound,
+)
 
 
 def main() -> int:

@@ -26,3 +26,4 @@ def reproduced(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("reproduce") / "results"
     assert main(["reproduce", "--out", str(out), *REPRODUCE_ARGS]) == 0
     return out
+

@@ -15,6 +15,7 @@ from scipy import signal
 
 from fuzzyservo.cli import main
 from fuzzyservo.files import read_gains_toml
+from tests.helpers import printed_metrics
 
 GAINS = Path(__file__).resolve().parents[2] / "src" / "fuzzyservo" / "data" / "gains"
 
@@ -25,13 +26,6 @@ def _read(path: Path) -> dict[str, np.ndarray]:
     return {name: np.array([float(r[j]) for r in rows[1:]]) for j, name in enumerate(rows[0])}
 
 
-def _printed(text: str) -> dict[str, float]:
-    out = {}
-    for line in text.splitlines():
-        parts = line.split()
-        if len(parts) >= 2:
-            out[parts[0]] = float(parts[1])
-    return out
 
 
 def test_linear_plant_follows_the_linearize_transfer_function(
@@ -74,14 +68,14 @@ def test_metrics_flag_equals_metrics_command(tmp_path: Path, plant: str,
     # absolute positions on every plant: starts at mid-stroke of the 1 m stroke
     assert cols["y"][0] == pytest.approx(0.5, abs=1e-9)
     assert cols["r"][-1] == pytest.approx(0.6, abs=1e-12)
-    assert _printed(printed)["peak"] > 0.5  # the peak is a position, absolute too
+    assert printed_metrics(printed)["peak"] > 0.5  # the peak is a position, absolute too
 
 
 def test_metrics_without_out_and_csv_to_stdout(capsys: pytest.CaptureFixture[str]) -> None:
     args = ["simulate", "--plant", "linear", "--controller", "p", "--gains", "kp=4",
             "--duration", "0.2"]
     assert main([*args, "--metrics"]) == 0
-    metrics = _printed(capsys.readouterr().out)
+    metrics = printed_metrics(capsys.readouterr().out)
     assert set(metrics) >= {"rise_time", "overshoot", "itae"}
     assert main([*args, "--out", "-"]) == 0
     text = capsys.readouterr().out
@@ -100,7 +94,7 @@ def test_gains_file_runs_as_tuned(name: str, capsys: pytest.CaptureFixture[str])
     s = rec.setup
     assert main(["simulate", "--gains", str(path), "--plant", s.plant, "--reference",
                  f"step:{s.step}", "--duration", str(s.duration), "--metrics"]) == 0
-    m = _printed(capsys.readouterr().out)
+    m = printed_metrics(capsys.readouterr().out)
     for key in ("rise_time", "settling_time", "overshoot", "itae", "u_max"):
         assert m[key] == pytest.approx(rec.metrics[key], rel=5e-6, abs=1e-12), key
 

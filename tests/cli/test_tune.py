@@ -12,17 +12,11 @@ import fuzzyservo.commands.tune as tune_cmd
 from fuzzyservo.analysis.autotune import TuningProgress
 from fuzzyservo.cli import main
 from fuzzyservo.files import checkpoint_path, load_checkpoint, read_gains_toml
+from tests.helpers import printed_metrics
 
 FAST = ["--popsize", "4", "--maxiter", "6", "--duration", "5", "--no-polish", "--quiet"]
 
 
-def _printed_metrics(text: str) -> dict[str, float]:
-    out = {}
-    for line in text.splitlines():
-        parts = line.split()
-        if len(parts) >= 2:
-            out[parts[0]] = float(parts[1])
-    return out
 
 
 def test_tuned_pid_meets_the_limit_in_simulate(tmp_path: Path,
@@ -37,7 +31,7 @@ def test_tuned_pid_meets_the_limit_in_simulate(tmp_path: Path,
     assert main(["simulate", "--plant", "linear", "--gains", str(out),
                  "--reference", "step:0.1", "--duration", "5",
                  "--out", str(tmp_path / "run.csv"), "--metrics"]) == 0
-    m = _printed_metrics(capsys.readouterr().out)
+    m = printed_metrics(capsys.readouterr().out)
     assert m["overshoot"] <= 10.0
     assert abs(m["steady_state_error"]) <= 0.002 * 0.1
     # simulate prints 6 significant digits of the same run

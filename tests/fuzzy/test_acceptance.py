@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fuzzy_exact_reference import brute_uniform, trapezoid_error_bound
 
 from fuzzyservo.paper import alpha_system, du_system
+from tests.fuzzy.fuzzy_exact_reference import brute_uniform, trapezoid_error_bound
 
 SYSTEMS = {"du": du_system, "alpha": alpha_system}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SYSTEMS)
 @pytest.mark.parametrize(("n_points", "n_samples"), [(100_000, 10_000), (1_000, 1_000_000)])
 def test_exact_centroid_within_brute_force_error(name: str, n_points: int, n_samples: int) -> None:

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from fuzzy_exact_reference import fraction_centroid
 from scipy import integrate
 
 from fuzzyservo.fuzzy.kernels import (
@@ -16,6 +15,7 @@ from fuzzyservo.fuzzy.kernels import (
     segment_integrals,
 )
 from fuzzyservo.paper import alpha_system, du_system
+from tests.fuzzy.fuzzy_exact_reference import fraction_centroid
 
 
 @pytest.mark.parametrize("seed", range(3))

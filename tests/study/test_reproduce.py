@@ -16,6 +16,7 @@ from fuzzyservo.paper import PAPER_PIDS, named_set
 from fuzzyservo.sim import DEFAULT_DELAY
 from fuzzyservo.study.paper_study import TUNED_DESIGNS, Design, StudyConfig, run_plant_study
 from fuzzyservo.study.runner import default_gains_dir, load_tuned
+from tests.helpers import printed_metrics
 
 SHORT = dict(duration=6.0, delay_sweep=(0.0, 0.006, 0.05, 0.2))
 COLUMNS = ("rise_time", "settling_time", "overshoot", "steady_state_error", "iae", "itae",
@@ -29,13 +30,6 @@ def _designs(plant: str) -> dict[str, Design]:
             for k, v in load_tuned(plant, default_gains_dir()).items()}
 
 
-def _printed(text: str) -> dict[str, float]:
-    out = {}
-    for line in text.splitlines():
-        parts = line.split()
-        if len(parts) >= 2:
-            out[parts[0]] = float(parts[1])
-    return out
 
 
 def test_reproduce_writes_every_output(reproduced: Path) -> None:
@@ -92,7 +86,7 @@ def test_simulate_reproduces_every_metrics_row_with_no_extra_flag(
         capsys.readouterr()
         assert main(["simulate", *_simulate_args(key), "--plant", "linear", "--reference",
                      "step:0.1", "--duration", "20", "--metrics"]) == 0, key
-        printed = _printed(capsys.readouterr().out)
+        printed = printed_metrics(capsys.readouterr().out)
         row_start = html.index(f"<td>{escape(row['label'])}</td>", start)
         cells = re.findall(r'<td class="num">([^<]*)</td>',
                            html[row_start:html.index("</tr>", row_start)])

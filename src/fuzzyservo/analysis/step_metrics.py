@@ -18,7 +18,7 @@ from .._typing import ArrayLike, FloatArray
 from ..errors import InputError
 from ..sim.stepinfo import StepMetrics, metric_options, metrics_of
 
-__all__ = ["StepMetrics", "step_metrics"]
+__all__ = ["Run", "StepMetrics", "step_metrics"]
 
 
 def _signal(name: str, value: ArrayLike, n: int | None) -> FloatArray:
@@ -51,8 +51,9 @@ def _finite(name: str, value: float) -> float:
 
 
 class Run(Protocol):
-    """A single run with samples ``t``, ``y``, ``u``, ``r`` (a :class:`~fuzzyservo.sim.SimResult`
-    or a run CSV read by :func:`fuzzyservo.files.read_run_csv`)."""
+    """A single run with samples ``t``, ``y``, ``u``, ``r`` (a :class:`~fuzzyservo.sim.SimResult`,
+    an :class:`~fuzzyservo.sim.OpenLoopResult` (``r`` None) or a run CSV read by
+    :func:`fuzzyservo.files.read_run_csv`)."""
 
     @property
     def t(self) -> FloatArray:

@@ -79,11 +79,13 @@ def add_controller_arguments(parser: argparse.ArgumentParser | Any) -> None:
     names = controller_names()
     parser.add_argument("--controller", choices=names, default=None, metavar="NAME",
                         help=f"controller: {', '.join(names)} (default: the gains file's)")
+    gains = "; ".join(
+        f"{n}: " + ", ".join(f"{g.name}" + ("" if g.default is None else f"={g.default:g}")
+                             for g in controller_kind(n).gains) for n in names)
     parser.add_argument("--gains", default=None, metavar="FILE.toml|NAME=VALUE,...",
                         help="a gains file (what 'fuzzyservo tune' writes, e.g. "
                              "src/fuzzyservo/data/gains/linear-stfpi.toml), or gains as "
-                             "NAME=VALUE pairs in SI units (pid: kp, ki, kd[, n]; pid2 adds "
-                             "b, c; fpi, stfpi: ke, kde, kdu)")
+                             f"NAME=VALUE pairs in SI units ({gains}; =default)")
     parser.add_argument("--anti-windup", default=None,
                         choices=("clamping", "back-calculation", "none"),
                         help="PID family: anti-windup scheme (default clamping)")

@@ -49,6 +49,9 @@ def register(subparsers: Any) -> None:
             "command (--open-loop) and write the samples as CSV (--out), print the step "
             "metrics (--metrics) and/or plot the run (--plot). SI units; r and y are absolute "
             "positions in the stroke on every plant."),
+        epilog=("CSV columns: closed loop t, r, y, u, alpha, then the plant's states; open "
+                "loop t, u, y, then the plant's states. t [s]; r, y [m]; u [-], fraction of "
+                "the rated valve input; alpha [-] (NaN for the PID family)."),
     )
     add_plant_choice(parser, "nonlinear")
     parser.add_argument("--duration", type=float, default=2.0, metavar="S",

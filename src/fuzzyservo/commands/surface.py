@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import math
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +18,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import InputError
+from ..files import read_csv_columns
 from ..fuzzy import MamdaniSystem
 from ..paper import alpha_system, du_system
 from ..plots.figures import membership_data, render_memberships, render_surface, surface_data
@@ -56,7 +56,8 @@ def register(subparsers: Any) -> None:
 
 
 def read_points_csv(path: Path) -> tuple[FloatArray, FloatArray]:
-    """Read the ``e`` and ``de`` columns of a CSV as finite float arrays.
+    """Read the ``e`` and ``de`` columns of a CSV as finite float arrays (other columns, such
+    as the ``value`` of a CSV this command wrote, are ignored).
 
     Raises
     ------
@@ -64,40 +65,8 @@ def read_points_csv(path: Path) -> tuple[FloatArray, FloatArray]:
         The file cannot be read, lacks a header with ``e`` and ``de``, or a value is not a
         finite number (the message names the line and column).
     """
-    try:
-        with path.open(newline="", encoding="utf-8") as fh:
-            rows = [(n, row) for n, row in enumerate(csv.reader(fh), start=1)
-                    if row and not row[0].lstrip().startswith("#")]
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-        raise InputError(f"cannot read points CSV {str(path)!r}: {reason}") from exc
-    if not rows:
-        raise InputError(f"points CSV {str(path)!r} is empty: need a header with e,de")
-    header = [h.strip() for h in rows[0][1]]
-    missing = [c for c in ("e", "de") if c not in header]
-    if missing:
-        raise InputError(
-            f"points CSV {str(path)!r} lacks column(s) {', '.join(missing)}: the header must "
-            f"name e and de, got {', '.join(header) or 'nothing'}"
-        )
-    ie, ide = header.index("e"), header.index("de")
-    e = np.empty(len(rows) - 1)
-    de = np.empty(len(rows) - 1)
-    for k, (lineno, row) in enumerate(rows[1:]):
-        for col, idx, dest in (("e", ie, e), ("de", ide, de)):
-            text = row[idx].strip() if idx < len(row) else ""
-            try:
-                value = float(text)
-            except ValueError:
-                value = math.nan
-                text = text or "(empty)"
-            if not math.isfinite(value):
-                raise InputError(
-                    f"points CSV {str(path)!r} line {lineno} column {col}: {text!r} is not a "
-                    "finite number"
-                )
-            dest[k] = value
-    return e, de
+    cols = read_csv_columns(path, ("e", "de"), what="points CSV")
+    return cols["e"], cols["de"]
 
 
 def write_values_csv(path: Path, e: FloatArray, de: FloatArray, value: FloatArray) -> None:

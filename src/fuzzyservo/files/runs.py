@@ -20,7 +20,7 @@ import numpy as np
 from .._typing import FloatArray
 from ..errors import InputError
 
-__all__ = ["RunData", "read_run_csv"]
+__all__ = ["RunData", "read_csv_columns", "read_run_csv"]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -57,22 +57,20 @@ class RunData:
         return None if a is None or bool(np.all(np.isnan(a))) else a
 
 
-def read_run_csv(path: str | Path, required: tuple[str, ...] = ("t", "y", "u")) -> RunData:
-    """Read every column of a run CSV as float arrays.
+def read_csv_columns(path: str | Path, required: tuple[str, ...], *, what: str,
+                     min_rows: int = 1) -> dict[str, FloatArray]:
+    """The numeric columns of a CSV with a header row, as float arrays (``#`` lines ignored).
 
-    Parameters
-    ----------
-    path : str or Path
-        The CSV.
-    required : tuple of str
-        Columns that must be present.
+    ``required`` columns must be present and finite; another column is kept when every cell
+    is a number (NaN allowed) and left out otherwise (a text column); ``what`` names the file
+    in messages.
 
     Raises
     ------
     InputError
         The file cannot be read, has no header, names a column twice, lacks a required column,
-        has fewer than two rows, or holds a value that is not a number (the message names the
-        line and column).
+        has fewer than ``min_rows`` data rows, or holds a value that is not a number (the
+        message names the line and column).
     """
     path = Path(path)
     try:
@@ -81,22 +79,22 @@ def read_run_csv(path: str | Path, required: tuple[str, ...] = ("t", "y", "u")) 
                     if row and not row[0].lstrip().startswith("#")]
     except (OSError, UnicodeDecodeError) as exc:
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
-        raise InputError(f"cannot read run CSV {str(path)!r}: {reason}") from exc
+        raise InputError(f"cannot read {what} {str(path)!r}: {reason}") from exc
     want = ", ".join(required)
     if not rows:
-        raise InputError(f"run CSV {str(path)!r} is empty; expected a header with {want}")
+        raise InputError(f"{what} {str(path)!r} is empty; expected a header with {want}")
     header = [name.strip() for name in rows[0][1]]
     twice = sorted({h for h in header if header.count(h) > 1})
     if twice:
-        raise InputError(f"run CSV {str(path)!r} names column(s) {', '.join(twice)} twice")
+        raise InputError(f"{what} {str(path)!r} names column(s) {', '.join(twice)} twice")
     missing = [c for c in required if c not in header]
     if missing:
         raise InputError(
-            f"run CSV {str(path)!r} lacks column(s) {', '.join(missing)}; expected {want} "
+            f"{what} {str(path)!r} lacks column(s) {', '.join(missing)}; expected {want} "
             f"(found {', '.join(header) or 'none'})")
-    if len(rows) < 3:
-        raise InputError(f"run CSV {str(path)!r} has {len(rows) - 1} sample row(s); a run "
-                         f"needs at least 2")
+    if len(rows) - 1 < min_rows:
+        raise InputError(f"{what} {str(path)!r} has {len(rows) - 1} data row(s); at least "
+                         f"{min_rows} needed")
     columns: dict[str, FloatArray] = {}
     for j, name in enumerate(header):
         values = np.empty(len(rows) - 1)
@@ -105,10 +103,26 @@ def read_run_csv(path: str | Path, required: tuple[str, ...] = ("t", "y", "u")) 
             try:
                 values[i] = float(cell)
             except ValueError:
-                raise InputError(f"run CSV {str(path)!r} line {lineno}, column {name!r}: "
-                                 f"{cell!r} is not a number") from None
+                if name not in required:
+                    break  # a text column: left out
+                raise InputError(f"{what} {str(path)!r} line {lineno}, column {name!r}: "
+                                 f"{cell or '(empty)'!r} is not a number") from None
             if name in required and not math.isfinite(values[i]):
-                raise InputError(f"run CSV {str(path)!r} line {lineno}, column {name!r}: "
-                                 f"{cell!r} is not finite; every sample must be a number")
-        columns[name] = values
-    return RunData(path=path, columns=columns)
+                raise InputError(f"{what} {str(path)!r} line {lineno}, column {name!r}: "
+                                 f"{cell!r} is not finite; every value must be a number")
+        else:
+            columns[name] = values
+    return columns
+
+
+def read_run_csv(path: str | Path, required: tuple[str, ...] = ("t", "y", "u")) -> RunData:
+    """Read every column of a run CSV as float arrays (:func:`read_csv_columns`, at least two
+    samples).
+
+    Raises
+    ------
+    InputError
+        As :func:`read_csv_columns`.
+    """
+    columns = read_csv_columns(path, required, what="run CSV", min_rows=2)
+    return RunData(path=Path(path), columns=columns)

@@ -14,13 +14,13 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from .._typing import FloatArray
-from ..analysis.step_metrics import step_metrics
+from ..analysis.step_metrics import Run, step_metrics
 from ..errors import InputError
 
 __all__ = ["FIGURE_FORMATS", "RunCurve", "run_curves", "runs_figure", "save_figure"]
@@ -31,22 +31,6 @@ FIGURE_FORMATS: tuple[str, ...] = (".png", ".svg")
 #: One colour per run, in order (matplotlib's tab10, colour-blind-safer than the default).
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2",
             "#7f7f7f", "#bcbd22", "#17becf")
-
-
-class Run(Protocol):
-    """A single run: ``t`` [s], ``y`` [m], ``u`` [-]; ``r`` [m] and ``alpha`` [-] or None."""
-
-    @property
-    def t(self) -> FloatArray:
-        """Sample times [s]."""
-
-    @property
-    def y(self) -> FloatArray:
-        """Measured position [m]."""
-
-    @property
-    def u(self) -> FloatArray:
-        """Valve command [-]."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -36,6 +36,7 @@ from ..control import FuzzyPIController, PIDController, SelfTuningFuzzyPIControl
 from ..control.fuzzy_pi import KernelSystem
 from ..errors import ParameterError
 from ..paper import alpha_system, du_system
+from ._table import lookup
 
 __all__ = [
     "CONTROLLERS",
@@ -341,11 +342,7 @@ def controller_kind(name: str) -> ControllerKind:
     ParameterError
         Unknown name (the message lists the registered ones).
     """
-    try:
-        return _CONTROLLERS[name]
-    except (KeyError, TypeError):
-        raise ParameterError(f"unknown controller {name!r}; allowed: "
-                             f"{', '.join(_CONTROLLERS)}") from None
+    return lookup(_CONTROLLERS, name, "controller")
 
 
 def build_controller(name: str, gains: Mapping[str, float], *, dt: float,

@@ -26,9 +26,9 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
-from ..errors import ParameterError
 from ..plant import LinearServo, ServoParams, linearize
 from ..sim import LinearPlant, NonlinearPlant, Plant
+from ._table import lookup
 
 __all__ = [
     "DEFAULT_SUBSTEP",
@@ -109,10 +109,7 @@ def plant_kind(name: str) -> PlantKind:
     ParameterError
         Unknown name (the message lists the registered ones).
     """
-    try:
-        return _PLANTS[name]
-    except (KeyError, TypeError):
-        raise ParameterError(f"unknown plant {name!r}; allowed: {', '.join(_PLANTS)}") from None
+    return lookup(_PLANTS, name, "plant")
 
 
 def build_plant(name: str, params: ServoParams, position: float | None = None, *,

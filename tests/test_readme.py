@@ -1,0 +1,304 @@
+"""Every command and snippet of README.md runs, and does what its text says.
+
+The README is parsed: each ```sh block's commands run in order (``fuzzyservo ...`` in-process
+through ``fuzzyservo.cli.main``; ``make reproduce`` as the Makefile's recipe; ``make test`` is
+this suite and is not run again), each ```python block is executed, each ```pycon block is run
+as a doctest. Every block runs in a scratch folder in which ``src`` points at this repository's
+``src/``, as a user's shell in a clone would. Every shell command must have a check below that
+holds it to what the README says of it; a command without one fails the suite, so an example
+added without a check, or one that stops doing what it says, is caught.
+"""
+
+from __future__ import annotations
+
+import csv
+import doctest
+import json
+import re
+import shlex
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from fuzzyservo.cli import main
+from fuzzyservo.files import read_gains_toml, read_run_csv
+from tests.helpers import printed_metrics
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+
+
+@dataclass(frozen=True)
+class Block:
+    lang: str
+    text: str
+    line: int  # line of the opening fence
+
+    @property
+    def id(self) -> str:
+        return f"{self.lang}-line{self.line}"
+
+
+def _blocks() -> list[Block]:
+    out = []
+    lines = README.read_text(encoding="utf-8").splitlines()
+    i = 0
+    while i < len(lines):
+        m = re.match(r"^```(\w+)\s*$", lines[i])
+        if m:
+            j = i + 1
+            while not lines[j].startswith("```"):
+                j += 1
+            out.append(Block(m.group(1), "\n".join(lines[i + 1:j]) + "\n", i + 1))
+            i = j
+        i += 1
+    return out
+
+
+def _commands(block: Block) -> list[str]:
+    """Shell commands of a block: continuation lines joined, comments dropped."""
+    joined = block.text.replace("\\\n", " ")
+    cmds = []
+    for line in joined.splitlines():
+        words = shlex.split(line, comments=True)
+        if words:
+            cmds.append(shlex.join(words))
+    return cmds
+
+
+def _make_recipe(target: str) -> list[str]:
+    """The fuzzyservo command of a Makefile target (``$(BIN)/fuzzyservo ...``)."""
+    text = (ROOT / "Makefile").read_text(encoding="utf-8")
+    body = text.split(f"\n{target}:", 1)[1].split("\n\n", 1)[0]
+    recipe = next(ln.strip() for ln in body.splitlines() if "fuzzyservo " in ln)
+    return shlex.split(recipe.split("fuzzyservo", 1)[1])
+
+
+
+
+# ------------------------------------------------------------------ what each command says
+Check = Callable[[Path, str], None]
+
+
+def _reproduced(d: Path, out: str) -> None:
+    res = d / "results" / "paper"
+    for name in ("report.html", "claims.json", "metrics.csv", "fig4_linear.png",
+                 "fig4_nonlinear.svg"):
+        assert (res / name).is_file(), name
+    plants = {c["plant"] for c in json.loads((res / "claims.json").read_text())}
+    assert plants == {"linear", "nonlinear"}
+
+
+def _row_stfpi_10(d: Path, out: str) -> None:
+    m = printed_metrics(out)
+    # the README quotes these three figures (to their printed digits)
+    assert (m["rise_time"], m["settling_time"], round(m["overshoot"], 2)) == (0.763, 1.538, 2.63)
+
+
+def _stfpi_run(d: Path, out: str) -> None:
+    m = printed_metrics(out)
+    run = read_run_csv(d / "stfpi.csv")
+    assert list(run.columns)[:5] == ["t", "r", "y", "u", "alpha"]
+    assert run.y[0] == 0.5 and run.r[-1] == pytest.approx(0.6, abs=1e-12)  # absolute [m]
+    assert m["overshoot"] >= 0.0 and m["settling_time"] < 5.0
+
+
+def _ipd_run(d: Path, out: str) -> None:
+    run = read_run_csv(d / "ipd.csv")
+    from fuzzyservo.analysis import step_metrics
+
+    m = step_metrics(run)
+    assert run.r is not None
+    # "within 2 % of the move from 3.8 s and ends 0.3 mm from the target at 8 s"
+    assert round(m.settling_time, 1) == 3.8
+    assert round(abs(run.r[-1] - run.y[-1]) * 1e3, 1) == 0.3
+    assert run.r[-1] - run.r[0] == pytest.approx(0.2, abs=1e-12)  # the 0.2 m trapezoid
+    assert (d / "ipd.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def _plot(d: Path, out: str) -> None:
+    svg = (d / "both.svg").read_text(encoding="utf-8")
+    assert svg.lstrip().startswith(("<?xml", "<svg"))
+    assert "I-PD" in svg and "overshoot" in svg  # labels and metrics in the legend
+
+
+def _metrics_json(d: Path, out: str) -> None:
+    m = json.loads(out)
+    assert m["settling_time"] == pytest.approx(3.78, abs=0.01)
+
+
+def _linearize_json(d: Path, out: str) -> None:
+    s = json.loads(out)
+    # the paper set is derived so that eq. (8) has Table A.1's omega_0 and damping
+    assert s["omega_0"] == pytest.approx(19.6, rel=1e-9) and s["damping"] == pytest.approx(
+        0.1, rel=1e-9)
+
+
+def _linearize_stiff(d: Path, out: str) -> None:
+    assert out.startswith("position        0.1 m") and "omega_0" in out
+
+
+def _open_loop_nonlinear(d: Path, out: str) -> None:
+    run = read_run_csv(d / "run.csv")
+    assert list(run.columns)[:3] == ["t", "u", "y"] and "p_f" in run.columns
+    assert run.t[-1] == pytest.approx(2.0, abs=1e-12) and run.y[-1] > 0.7  # extends
+
+
+def _open_loop_small_signal(d: Path, out: str) -> None:
+    run = read_run_csv(d / "r.csv")
+    assert "p_f" in run.columns and run.y[-1] < 0.5  # u = -0.5 retracts
+
+
+def _surface_du(d: Path, out: str) -> None:
+    with (d / "du.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 41 * 41
+    assert (d / "du.png").is_file() and (d / "du_mf.png").is_file()
+
+
+def _surface_alpha(d: Path, out: str) -> None:
+    with (d / "alpha.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 41 * 41  # "at the grid's points"
+    assert all(1 / 18 - 1e-12 <= float(r["value"]) <= 17 / 18 + 1e-12 for r in rows)
+
+
+def _tune_pid(d: Path, out: str) -> None:
+    t = read_gains_toml(d / "pid.toml")
+    assert t.controller == "pid" and t.feasible and t.metrics["overshoot"] <= 10.0
+    assert t.setup.delay == 0.0
+
+
+def _simulate_pid_file(d: Path, out: str) -> None:
+    t = read_gains_toml(d / "pid.toml")
+    m = printed_metrics(out)
+    # "runs it": the tuned run's metrics, to the 6 digits simulate prints
+    assert m["itae"] == pytest.approx(t.metrics["itae"], rel=5e-6)
+
+
+def _tune_stfpi(d: Path, out: str) -> None:
+    t = read_gains_toml(d / "stfpi.toml")
+    assert [s.name for s in t.stages] == ["fpi", "rise", "refine"]  # the paper's steps
+    assert t.feasible and t.metrics["overshoot"] <= 0.5
+
+
+def _tune_pid2(d: Path, out: str) -> None:
+    t = read_gains_toml(d / "pid2.toml")
+    assert t.controller == "pid2" and t.gains["c"] == 0.0  # held while tuning
+    assert t.setup.overrides == (("load.mass", 40.0),) and t.setup.seed == 1
+
+
+CHECKS: dict[str, Check] = {
+    "make reproduce": _reproduced,
+    "fuzzyservo simulate --gains src/fuzzyservo/data/gains/linear-stfpi.toml": _row_stfpi_10,
+    "--out stfpi.csv --metrics": _stfpi_run,
+    "--out ipd.csv --plot ipd.png": _ipd_run,
+    "fuzzyservo plot stfpi.csv ipd.csv": _plot,
+    "fuzzyservo metrics ipd.csv --json": _metrics_json,
+    "fuzzyservo linearize --json": _linearize_json,
+    "fuzzyservo linearize --set stiff-oil": _linearize_stiff,
+    "--command 0.5 --duration 2 --out run.csv": _open_loop_nonlinear,
+    "--plant small-signal --open-loop": _open_loop_small_signal,
+    "fuzzyservo surface du": _surface_du,
+    "fuzzyservo surface alpha": _surface_alpha,
+    "fuzzyservo tune --controller pid --plant linear": _tune_pid,
+    "fuzzyservo simulate --gains pid.toml": _simulate_pid_file,
+    "fuzzyservo tune --controller stfpi": _tune_stfpi,
+    "fuzzyservo tune --controller pid2": _tune_pid2,
+}
+#: Not run: the suite itself.
+NOT_RUN = {"make test"}
+
+BLOCKS = _blocks()
+
+
+def _check_for(cmd: str) -> Check:
+    hits = [c for key, c in CHECKS.items() if key in cmd]
+    assert len(hits) == 1, f"README command without exactly one check: {cmd!r}"
+    return hits[0]
+
+
+@pytest.fixture
+def scratch(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    (tmp_path / "src").symlink_to(ROOT / "src", target_is_directory=True)
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def test_readme_has_the_two_commands_first() -> None:
+    first = BLOCKS[0]
+    assert first.lang == "sh" and _commands(first) == ["make reproduce", "make test"]
+    assert {b.lang for b in BLOCKS} <= {"sh", "python", "pycon"}
+
+
+def test_every_command_has_a_check() -> None:
+    for b in BLOCKS:
+        if b.lang == "sh":
+            for cmd in _commands(b):
+                if cmd not in NOT_RUN:
+                    _check_for(cmd)
+
+
+#: Commands that take more than a few seconds (the study, tuning): their blocks are ``slow``.
+SLOW = ("make reproduce", "fuzzyservo tune")
+
+
+def _sh_params() -> list[object]:
+    return [pytest.param(b, id=b.id, marks=[pytest.mark.slow] if any(
+        c.startswith(SLOW) for c in _commands(b)) else []) for b in BLOCKS if b.lang == "sh"]
+
+
+@pytest.mark.parametrize("block", _sh_params())
+def test_shell_block(block: Block, scratch: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    for cmd in _commands(block):
+        if cmd in NOT_RUN:
+            continue
+        words = shlex.split(cmd)
+        if words[:2] == ["make", "reproduce"]:
+            argv = [*_make_recipe("reproduce"), "--quiet"]
+        else:
+            assert words[0] == "fuzzyservo", f"README line {block.line}: {cmd!r}"
+            argv = words[1:]
+        capsys.readouterr()
+        status = main(argv)
+        out, err = capsys.readouterr()
+        assert status == 0, f"README line {block.line}: {cmd!r} -> {status}: {err}"
+        _check_for(cmd)(scratch, out)
+
+
+def _png(path: Path) -> None:
+    assert path.read_bytes()[:4] == b"\x89PNG"
+
+
+def _gains_file(path: Path) -> None:
+    assert read_gains_toml(path).controller == "pid"
+
+
+#: Files the Python examples say they write, and what each must hold.
+WRITTEN: dict[str, Callable[[Path], None]] = {"runs.png": _png, "my-pid.toml": _gains_file}
+
+
+@pytest.mark.parametrize("block", [b for b in BLOCKS if b.lang == "python"],
+                         ids=lambda b: b.id)
+def test_python_block(block: Block, scratch: Path) -> None:
+    code = compile(block.text, f"README.md:{block.line}", "exec")
+    exec(code, {"__name__": "__readme__"})  # noqa: S102 - the README's own code
+    for name, check in WRITTEN.items():
+        if f'"{name}"' in block.text:
+            check(scratch / name)
+
+
+def test_every_written_file_is_in_a_block() -> None:
+    text = "".join(b.text for b in BLOCKS if b.lang == "python")
+    assert all(f'"{name}"' in text for name in WRITTEN)
+
+
+@pytest.mark.parametrize("block", [b for b in BLOCKS if b.lang == "pycon"], ids=lambda b: b.id)
+def test_pycon_block(block: Block, scratch: Path) -> None:
+    test = doctest.DocTestParser().get_doctest(block.text, {}, block.id, str(README),
+                                               block.line)
+    runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE)
+    runner.run(test)
+    assert runner.summarize(verbose=False).failed == 0
