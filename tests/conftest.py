@@ -1,9 +1,12 @@
-"""Shared fixtures. The costly ``fuzzyservo reproduce`` runs once per test session (and, under
-pytest-xdist, on one worker: its users carry ``@pytest.mark.xdist_group("reproduce")`` and
-``make test`` distributes with ``--dist loadgroup``)."""
+"""Shared fixtures. The costly ``fuzzyservo reproduce`` runs once per test session: under
+pytest-xdist the workers share one output folder, the first to need it computes it under a
+file lock and the others wait and reuse it (pytest-xdist's recipe for session fixtures that
+must run once; ``--dist loadgroup`` would do it too, but it does not group with pytest 9.2,
+pytest-xdist issue #1386)."""
 
 from __future__ import annotations
 
+import fcntl
 from pathlib import Path
 
 import pytest
@@ -21,9 +24,23 @@ def reproduce_args() -> tuple[str, ...]:
 
 
 @pytest.fixture(scope="session")
-def reproduced(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Output folder of ``fuzzyservo reproduce --plant linear`` (default settings)."""
-    out = tmp_path_factory.mktemp("reproduce") / "results"
-    assert main(["reproduce", "--out", str(out), *REPRODUCE_ARGS]) == 0
-    return out
+def reproduced(tmp_path_factory: pytest.TempPathFactory, worker_id: str) -> Path:
+    """Output folder of ``fuzzyservo reproduce --plant linear`` (default settings).
 
+    Shared, read-only: a test that writes into a reproduction copies it first.
+    """
+    if worker_id == "master":  # not distributed: a folder of this session
+        root = tmp_path_factory.mktemp("reproduce")
+    else:  # the session's base folder, common to its workers
+        root = tmp_path_factory.getbasetemp().parent
+    out = root / "reproduced" / "results"
+    done = root / "reproduced" / "complete"
+    with (root / "reproduced.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if not done.is_file():
+                assert main(["reproduce", "--out", str(out), *REPRODUCE_ARGS]) == 0
+                done.write_text("ok\n")
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+    return out

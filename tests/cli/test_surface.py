@@ -92,7 +92,6 @@ def test_unknown_system_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> 
     assert "invalid choice: 'beta'" in capsys.readouterr().err
 
 
-@pytest.mark.xdist_group("reproduce")
 def test_reproduce_writes_fig3(reproduced: Path) -> None:
     out = reproduced
     for stem in ("fig3a_memberships", "fig3a_surface_du", "fig3b_memberships",
