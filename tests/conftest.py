@@ -1,4 +1,5 @@
-"""Shared fixtures. The costly ``fuzzyservo reproduce`` runs once per test session: under
+"""Shared fixtures. The costly ``make reproduce`` (its recipe, ``fuzzyservo reproduce --out
+results/paper``: both plants, default settings) runs once per test session: under
 pytest-xdist the workers share one output folder, the first to need it computes it under a
 file lock and the others wait and reuse it (pytest-xdist's recipe for session fixtures that
 must run once; ``--dist loadgroup`` would do it too, but it does not group with pytest 9.2,
@@ -12,20 +13,19 @@ from pathlib import Path
 import pytest
 
 from fuzzyservo.cli import main
-
-#: Arguments of the session's reproduction: the linear plant, the default 20 s runs.
-REPRODUCE_ARGS: tuple[str, ...] = ("--plant", "linear", "--quiet")
+from tests.helpers import make_recipe
 
 
-@pytest.fixture(scope="session")
-def reproduce_args() -> tuple[str, ...]:
-    """The ``reproduce`` options of :func:`reproduced` (to run the same reproduction again)."""
-    return REPRODUCE_ARGS
+def reproduce_argv(out: Path) -> list[str]:
+    """``make reproduce``'s command with its output folder replaced by ``out``, quiet."""
+    argv = make_recipe("reproduce")
+    argv[argv.index("--out") + 1] = str(out)
+    return [*argv, "--quiet"]
 
 
 @pytest.fixture(scope="session")
 def reproduced(tmp_path_factory: pytest.TempPathFactory, worker_id: str) -> Path:
-    """Output folder of ``fuzzyservo reproduce --plant linear`` (default settings).
+    """Output folder of ``make reproduce``'s command, run in a scratch folder.
 
     Shared, read-only: a test that writes into a reproduction copies it first.
     """
@@ -33,13 +33,13 @@ def reproduced(tmp_path_factory: pytest.TempPathFactory, worker_id: str) -> Path
         root = tmp_path_factory.mktemp("reproduce")
     else:  # the session's base folder, common to its workers
         root = tmp_path_factory.getbasetemp().parent
-    out = root / "reproduced" / "results"
+    out = root / "reproduced" / "results" / "paper"
     done = root / "reproduced" / "complete"
     with (root / "reproduced.lock").open("w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         try:
             if not done.is_file():
-                assert main(["reproduce", "--out", str(out), *REPRODUCE_ARGS]) == 0
+                assert main(reproduce_argv(out)) == 0
                 done.write_text("ok\n")
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)

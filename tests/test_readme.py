@@ -1,7 +1,8 @@
 """Every command and snippet of README.md runs, and does what its text says.
 
 The README is parsed: each ```sh block's commands run in order (``fuzzyservo ...`` in-process
-through ``fuzzyservo.cli.main``; ``make reproduce`` as the Makefile's recipe; ``make test`` is
+through ``fuzzyservo.cli.main``; ``make reproduce`` is the Makefile's recipe, which the
+session's ``reproduced`` fixture runs once for this and the study's tests; ``make test`` is
 this suite and is not run again), each ```python block is executed, each ```pycon block is run
 as a doctest. Every block runs in a scratch folder in which ``src`` points at this repository's
 ``src/``, as a user's shell in a clone would. Every shell command must have a check below that
@@ -68,14 +69,6 @@ def _commands(block: Block) -> list[str]:
     return cmds
 
 
-def _make_recipe(target: str) -> list[str]:
-    """The fuzzyservo command of a Makefile target (``$(BIN)/fuzzyservo ...``)."""
-    text = (ROOT / "Makefile").read_text(encoding="utf-8")
-    body = text.split(f"\n{target}:", 1)[1].split("\n\n", 1)[0]
-    recipe = next(ln.strip() for ln in body.splitlines() if "fuzzyservo " in ln)
-    return shlex.split(recipe.split("fuzzyservo", 1)[1])
-
-
 
 
 # ------------------------------------------------------------------ what each command says
@@ -83,7 +76,7 @@ Check = Callable[[Path, str], None]
 
 
 def _reproduced(d: Path, out: str) -> None:
-    res = d / "results" / "paper"
+    res = d / "paper"
     for name in ("report.html", "claims.json", "metrics.csv", "fig4_linear.png",
                  "fig4_nonlinear.svg"):
         assert (res / name).is_file(), name
@@ -242,7 +235,8 @@ def test_every_command_has_a_check() -> None:
 
 
 #: Commands that take more than a few seconds (the study, tuning): their blocks are ``slow``.
-SLOW = ("make reproduce", "fuzzyservo tune")
+#: (``make reproduce`` is the session's reproduction, shared with tests/study.)
+SLOW = ("fuzzyservo tune",)
 
 
 def _sh_params() -> list[object]:
@@ -251,18 +245,20 @@ def _sh_params() -> list[object]:
 
 
 @pytest.mark.parametrize("block", _sh_params())
-def test_shell_block(block: Block, scratch: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_shell_block(block: Block, scratch: Path, capsys: pytest.CaptureFixture[str],
+                     request: pytest.FixtureRequest) -> None:
     for cmd in _commands(block):
         if cmd in NOT_RUN:
             continue
         words = shlex.split(cmd)
         if words[:2] == ["make", "reproduce"]:
-            argv = [*_make_recipe("reproduce"), "--quiet"]
-        else:
-            assert words[0] == "fuzzyservo", f"README line {block.line}: {cmd!r}"
-            argv = words[1:]
+            # the session's reproduction is this recipe (tests/conftest.py): check its output
+            paper = request.getfixturevalue("reproduced")
+            _check_for(cmd)(paper.parent, "")
+            continue
+        assert words[0] == "fuzzyservo", f"README line {block.line}: {cmd!r}"
         capsys.readouterr()
-        status = main(argv)
+        status = main(words[1:])
         out, err = capsys.readouterr()
         assert status == 0, f"README line {block.line}: {cmd!r} -> {status}: {err}"
         _check_for(cmd)(scratch, out)

@@ -31,61 +31,69 @@ def _designs(plant: str) -> dict[str, Design]:
 
 
 
+PLANTS = ("linear", "nonlinear")
+
+
 def test_reproduce_writes_every_output(reproduced: Path) -> None:
     out = reproduced
-    for stem in ("fig4_linear", "fig5_linear", "fig6_linear", "fig7_linear", "fig8_linear",
-                 "fig8_delay_overshoot_linear", "robustness_linear", "fig3a_surface_du"):
-        assert (out / f"{stem}.png").stat().st_size > 10_000, stem
-        assert (out / f"{stem}.svg").is_file(), stem
+    for plant in PLANTS:
+        for stem in ("fig4", "fig5", "fig6", "fig7", "fig8", "fig8_delay_overshoot",
+                     "robustness"):
+            assert (out / f"{stem}_{plant}.png").stat().st_size > 10_000, (stem, plant)
+            assert (out / f"{stem}_{plant}.svg").is_file(), (stem, plant)
+    assert (out / "fig3a_surface_du.png").stat().st_size > 10_000
     claims = json.loads((out / "claims.json").read_text())
-    assert [c["id"] for c in claims] == [f"C{i}" for i in range(1, 9)]
+    assert [(c["plant"], c["id"]) for c in claims] == [
+        (p, f"C{i}") for p in PLANTS for i in range(1, 9)]
     for c in claims:
         assert set(c) == {"id", "claim", "verdict", "evidence", "plant"}
         assert c["verdict"] in ("holds", "does not hold", "holds under stated conditions")
-        assert c["plant"] == "linear" and c["evidence"]
+        assert c["evidence"]
     html = (out / "report.html").read_text()
     assert "data:image/png;base64," in html and "http" not in html.replace(
         "http-equiv", "")  # offline: nothing fetched
     for needle in ("Departures from the paper", "Parameter set", "Controller gains",
                    "load.mass"):
         assert needle in html
-    assert len(list((out / "traces").glob("linear_*.csv"))) >= 8
+    for plant in PLANTS:
+        assert len(list((out / "traces").glob(f"{plant}_*.csv"))) >= 8
 
 
-def test_second_run_reuses_the_cache(reproduced: Path, reproduce_args: tuple[str, ...],
-                                     tmp_path: Path) -> None:
+def test_second_run_reuses_the_cache(reproduced: Path, tmp_path: Path) -> None:
     again = tmp_path / "results"
     shutil.copytree(reproduced, again)  # the shared reproduction stays as it is
     before = {p: p.stat().st_mtime_ns for p in (again / ".cache").iterdir()}
-    assert main(["reproduce", "--out", str(again), *reproduce_args]) == 0
+    assert len(before) == 2  # one entry per plant
+    assert main(["reproduce", "--out", str(again), "--plant", "linear", "--quiet"]) == 0
     after = {p: p.stat().st_mtime_ns for p in (again / ".cache").iterdir()}
     assert before == after  # nothing recomputed
 
 
-def _simulate_args(key: str) -> list[str]:
+def _simulate_args(key: str, plant: str) -> list[str]:
     """How a user reruns a study controller: its committed gains file, or the paper's
     gains as printed; nothing else than the plant, reference and duration."""
     if key in PAPER_PIDS:
         g = PAPER_PIDS[key]
         return ["--controller", "pid", "--gains", f"kp={g.kp},ki={g.ki},kd={g.kd}"]
     name = TUNED_DESIGNS[key][0]
-    return ["--gains", str(default_gains_dir() / f"linear-{name}.toml")]
+    return ["--gains", str(default_gains_dir() / f"{plant}-{name}.toml")]
 
 
+@pytest.mark.parametrize("plant", PLANTS)
 def test_simulate_reproduces_every_metrics_row_with_no_extra_flag(
-        reproduced: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        reproduced: Path, capsys: pytest.CaptureFixture[str], plant: str) -> None:
     """Issue 8's acceptance: ``fuzzyservo simulate --gains FILE --plant linear --reference
     step:0.1 --duration 20 --metrics`` prints the row of metrics.csv: the study's nominal
-    runs and simulate use the same default delay (none)."""
+    runs and simulate use the same default delay (none). Every row, both plants."""
     assert StudyConfig(params=named_set("paper")).delay == DEFAULT_DELAY == 0.0
     with (reproduced / "metrics.csv").open() as fh:
-        rows = {r["controller"]: r for r in csv.DictReader(fh) if r["plant"] == "linear"}
+        rows = {r["controller"]: r for r in csv.DictReader(fh) if r["plant"] == plant}
     assert set(rows) == set(PAPER_PIDS) | set(TUNED_DESIGNS)
     html = (reproduced / "report.html").read_text()
-    start = html.index("Results on the linear plant")
+    start = html.index(f"Results on the {plant} plant")
     for key, row in rows.items():
         capsys.readouterr()
-        assert main(["simulate", *_simulate_args(key), "--plant", "linear", "--reference",
+        assert main(["simulate", *_simulate_args(key, plant), "--plant", plant, "--reference",
                      "step:0.1", "--duration", "20", "--metrics"]) == 0, key
         printed = printed_metrics(capsys.readouterr().out)
         row_start = html.index(f"<td>{escape(row['label'])}</td>", start)
