@@ -95,6 +95,8 @@ def _stfpi_run(d: Path, out: str) -> None:
     run = read_run_csv(d / "stfpi.csv")
     assert list(run.columns)[:5] == ["t", "r", "y", "u", "alpha"]
     assert run.y[0] == 0.5 and run.r[-1] == pytest.approx(0.6, abs=1e-12)  # absolute [m]
+    # "with the 6 ms hose delay": the piston holds still until the first command arrives
+    assert run.u[0] != 0.0 and all(run.y[:7] == 0.5) and run.y[7] > 0.5
     assert m["overshoot"] >= 0.0 and m["settling_time"] < 5.0
 
 
@@ -197,7 +199,7 @@ CHECKS: dict[str, Check] = {
     "fuzzyservo surface du": _surface_du,
     "fuzzyservo surface alpha": _surface_alpha,
     "fuzzyservo tune --controller pid --plant linear": _tune_pid,
-    "fuzzyservo simulate --gains pid.toml": _simulate_pid_file,
+    "fuzzyservo simulate --gains pid.toml --metrics": _simulate_pid_file,
     "fuzzyservo tune --controller stfpi": _tune_stfpi,
     "fuzzyservo tune --controller pid2": _tune_pid2,
 }

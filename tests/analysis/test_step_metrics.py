@@ -325,3 +325,24 @@ def test_regression_times_include_the_wait_of_a_delayed_step() -> None:
     assert delayed.peak_time == pytest.approx(delay + math.pi / wd, abs=dt)  # analytic, 1 sample
     assert delayed.settling_time == pytest.approx(delay + ref["SettlingTime"], abs=dt)  # 1 sample
     assert delayed.rise_time == pytest.approx(ref["RiseTime"], abs=dt)  # one sample
+
+
+def test_a_result_gives_its_own_metrics() -> None:
+    """``step_metrics(result)`` and ``result.metrics()`` are the explicit call on the result's
+    samples; an open-loop run has no reference and says so."""
+    from fuzzyservo.errors import InputError as Err
+    from fuzzyservo.paper import paper_params
+    from fuzzyservo.registry import build_controller, build_plant
+    from fuzzyservo.sim import Step, simulate, simulate_open_loop
+
+    p = paper_params()
+    run = simulate(build_controller("pid", {"kp": 8.0, "ki": 0.1, "kd": 0.001}, dt=1e-3),
+                   build_plant("linear", p), Step(0.1), duration=3.0)
+    explicit = step_metrics(run.t, run.y, u=run.u, r=run.r)
+    assert step_metrics(run) == explicit == run.metrics()
+    assert run.metric("itae") == explicit.itae == explicit["itae"]
+    with pytest.raises(Err, match="do not pass them too"):
+        step_metrics(run, run.y)
+    ol = simulate_open_loop(build_plant("linear", p), 0.2, duration=0.1)
+    with pytest.raises(Err, match="needs a closed-loop run"):
+        step_metrics(ol)

@@ -99,6 +99,39 @@ def test_gains_file_runs_as_tuned(name: str, capsys: pytest.CaptureFixture[str])
         assert m[key] == pytest.approx(rec.metrics[key], rel=5e-6, abs=1e-12), key
 
 
+@pytest.mark.parametrize("name", ["linear-stfpi", "nonlinear-pid2"])
+def test_gains_file_alone_runs_as_tuned(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """With only ``--gains FILE`` the file's plant, step, duration, delay and sample time are
+    used (said on stderr), so the printed metrics are the tuned run's."""
+    path = GAINS / f"{name}.toml"
+    rec = read_gains_toml(path)
+    assert main(["simulate", "--gains", str(path), "--metrics"]) == 0
+    out, err = capsys.readouterr()
+    m = printed_metrics(out)
+    for key in ("rise_time", "settling_time", "overshoot", "itae"):
+        assert m[key] == pytest.approx(rec.metrics[key], rel=5e-6, abs=1e-12), key
+    assert err.count("\n") == 1 and f"as tuned, the {rec.setup.plant} plant" in err
+    assert f"{rec.setup.duration:g} s" in err and "delay 0 s" in err
+
+
+def test_a_run_unlike_the_tuning_says_so(tmp_path: Path,
+                                         capsys: pytest.CaptureFixture[str]) -> None:
+    path = GAINS / "linear-stfpi.toml"
+    assert main(["simulate", "--gains", str(path), "--plant", "nonlinear", "--ts", "0.002",
+                 "--delay", "hose", "--duration", "1", "--metrics"]) == 0
+    err = capsys.readouterr().err
+    assert "was tuned on the linear plant and with a delay of 0 s and at ts = 0.001 s" in err
+    assert "kde is per sample" in err
+    # a hand-written file: no record, nothing to say; the defaults apply
+    mini = tmp_path / "p.toml"
+    mini.write_text('controller = "p"\n[gains]\nkp = 4\n', encoding="utf-8")
+    assert main(["simulate", "--gains", str(mini), "--plant", "linear", "--duration", "0.01",
+                 "--out", str(tmp_path / "p.csv")]) == 0
+    assert capsys.readouterr().err == ""
+    assert float((tmp_path / "p.csv").read_text().splitlines()[1].split(",")[3]) == \
+        pytest.approx(4 * 0.1, rel=1e-15)  # u_0 = kp e_0 with the default step of 0.1 m
+
+
 def test_gains_file_and_controller_must_agree(tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
     path = GAINS / "linear-stfpi.toml"
@@ -140,6 +173,9 @@ def test_plot_writes_a_figure(tmp_path: Path) -> None:
      (["--controller", "p", "--gains", "kp=1", "--plot", "x.jpg"], ".png or .svg"),
      (["--controller", "p", "--gains", "kp=1", "--plant", "spring"], "spring"),
      (["--gains", "missing.toml"], "missing.toml"),
+     (["--gains", ""], "--gains is empty"),
+     (["--gains", "nonexist"], "cannot read gains file 'nonexist'"),
+     (["--open-loop", "--command", "0.1", "--noise-std", "1e-3"], "belong to the closed loop"),
      (["--gains", "kp=1"], "--controller")],
 )
 def test_bad_input_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],

@@ -46,6 +46,7 @@ def test_tuned_pid_meets_the_limit_in_simulate(tmp_path: Path,
      (["--controller", "pid", "--plant", "spring"], "spring"),
      (["--controller", "pid", "--objective", "iqe"], "iqe"),
      (["--controller", "pid", "--step", "0"], "step"),
+     (["--controller", "pid", "--ts", "1e-9"], "at most 10000000 are allowed"),
      (["--controller", "pid", "--param", "valve.nothing=1"], "nothing"),
      (["--controller", "pid", "--resume"], "partial.npz")],
 )

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from fuzzyservo.analysis.autotune import TunedGains, TuningSetup, tune_controller
-from fuzzyservo.errors import InputError
-from fuzzyservo.files import load_controller, read_gains_toml, write_gains_toml
+from fuzzyservo.errors import InputError, ParameterError
+from fuzzyservo.files import load_controller, read_gains_file, read_gains_toml, write_gains_toml
 from fuzzyservo.paper import named_set
 from fuzzyservo.registry import build_plant, controller_kind
 from fuzzyservo.sim import Step, simulate
@@ -62,7 +62,9 @@ def test_committed_gain_files_load() -> None:
 
 @pytest.mark.parametrize("name", ["linear-pid", "linear-pid2", "nonlinear-stfpi-os0"])
 def test_controller_from_a_file_reproduces_its_tuned_run(name: str) -> None:
-    ctl, rec = load_controller(GAINS_DIR / f"{name}.toml")
+    ctl, gf = load_controller(GAINS_DIR / f"{name}.toml")
+    rec = gf.tuned
+    assert rec is not None and gf.gains == rec.gains
     assert ctl.dt == rec.setup.ts  # the file's sample time (kde is per sample)
     s = rec.setup
     plant = build_plant(s.plant, PARAMS, s.start * PARAMS.cylinder.stroke)
@@ -105,3 +107,34 @@ def test_a_one_dof_pid_file_with_setpoint_weights_points_to_pid2(tmp_path: Path)
 def test_missing_gains_file(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="nothere"):
         read_gains_toml(tmp_path / "nothere.toml")
+
+
+def test_a_hand_written_file_needs_controller_and_gains(tmp_path: Path) -> None:
+    path = tmp_path / "ipd.toml"
+    path.write_text('controller = "pid2"\n[gains]\nkp = 10\nki = 10.0\nkd = 0.1\nb = 0\n'
+                    'c = 0\n', encoding="utf-8")
+    gf = read_gains_file(path)
+    assert (gf.controller, gf.tuned, gf.ts) == ("pid2", None, None)
+    assert gf.gains == {"kp": 10.0, "ki": 10.0, "kd": 0.1, "n": 100.0, "b": 0.0, "c": 0.0}
+    ctl, _ = load_controller(path, dt=2e-3)
+    assert (ctl.dt, ctl.b, ctl.c, ctl.n) == (2e-3, 0.0, 0.0, 100.0)
+    with pytest.raises(ParameterError, match="records no sample time .*give dt"):
+        load_controller(path)
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [('controller = "pid"\n[gains]\nkp = 1\n', "controller pid needs gains ki, kd"),
+     ('controller = "pid"\n[gains]\nkp = 1\nki = 1\nkd = 0\n[extra]\n',
+      "unknown key 'extra'"),
+     ('[gains]\nkp = 1\n', "missing key 'controller'"),
+     ('controller = "pd"\n[gains]\nkp = 1\n', "unknown controller 'pd'"),
+     ('controller = "pid"\n[gains]\nkp = "one"\n', "key 'gains.kp' has the wrong type")],
+)
+def test_a_bad_hand_written_file_names_the_problem(tmp_path: Path, text: str,
+                                                   needle: str) -> None:
+    path = tmp_path / "g.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(InputError, match=needle) as info:
+        read_gains_file(path)
+    assert str(path) in str(info.value)

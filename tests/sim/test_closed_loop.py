@@ -216,3 +216,24 @@ def test_matrix_exponential_matches_scipy(servo: LinearServo, h: float) -> None:
         ref = expm(mat)
         # same algorithm family (Higham 2005); differences are rounding
         assert np.max(np.abs(expm_pade13(mat) - ref)) <= 1e-13 * np.max(np.abs(ref))
+
+
+def test_a_delay_longer_than_the_run_never_reaches_the_plant(servo: LinearServo) -> None:
+    """The command buffer is sized by the run, not by the delay: 1e9 s of delay costs nothing,
+    and the plant holds its start command for the whole run (issue 8 review)."""
+    from fuzzyservo.paper import paper_params
+    from fuzzyservo.registry import build_plant
+    from fuzzyservo.sim import simulate_batch
+
+    ctl = PIDController(dt=H, kp=8.0, ki=1.0, kd=0.01)
+    for plant in (LinearPlant.from_servo(servo, 0.5), build_plant("nonlinear", paper_params())):
+        res = simulate(ctl, plant, Step(0.1), duration=0.5, delay=1e9)
+        assert np.all(res.y == plant.y0)  # exactly at rest: the trim command is held
+        # the error never shrinks: u_k = u0 + kp e + ki h (k + 1) e, the derivative kick of
+        # the first sample decayed by (1 + N h)^-500 (1e-21); rounding of the sum only
+        assert res.u[-1] == pytest.approx(plant.u0 + 8.0 * 0.1 + 1.0 * 1e-3 * 501 * 0.1,
+                                          abs=1e-12)
+        b = simulate_batch(ctl, plant=plant, reference=Step(0.1), duration=0.5,
+                           delay=[0.0, 1e9], keep_traces=True)
+        assert b.y is not None and np.array_equal(b.y[1], res.y)
+        assert b.y[0, -1] > plant.y0  # without the delay it moves

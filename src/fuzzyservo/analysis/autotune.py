@@ -42,6 +42,7 @@ from ..errors import ParameterError
 from ..plant import ServoParams
 from ..registry import ControllerKind, build_plant, controller_kind, plant_kind
 from ..sim import DEFAULT_DELAY, Plant, Step, simulate_batch
+from ..sim.closed_loop import time_grid
 from ..sim.stepinfo import METRIC_NAMES
 from .tuning import (
     OBJECTIVES,
@@ -156,6 +157,7 @@ class TuningSetup:
         if self.duration < 10.0 * self.ts:
             raise ParameterError(f"TuningSetup.duration {self.duration!r} s must span at least "
                                  f"10 samples of ts = {self.ts!r} s")
+        time_grid(self.duration, self.ts)  # at most MAX_SAMPLES samples per run
         if not (isinstance(self.seed, int) and self.seed >= 0):
             raise ParameterError(f"seed must be a non-negative integer, got {self.seed!r}")
         if self.popsize < 2 or self.maxiter < 1:

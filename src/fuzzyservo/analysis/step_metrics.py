@@ -166,6 +166,10 @@ def step_metrics(
             raise InputError("step_metrics(result) takes y, u and r from the result; "
                              "do not pass them too")
         run = cast(Run, t)
+        if run.r is None:
+            raise InputError("step_metrics(result) needs a closed-loop run: an open-loop run "
+                             "has no reference to measure the step against (call "
+                             "step_metrics(t, y, final_value=...) for a bare response)")
         return step_metrics(run.t, run.y, u=run.u, r=run.r, final_value=final_value,
                             initial_value=initial_value, rise=rise, settle_band=settle_band,
                             settle_band2=settle_band2)

@@ -16,13 +16,17 @@ from ..errors import ParameterError
 from ..paper.published import SET_NAMES, named_set
 from ..plant import ServoParams, load_toml, with_overrides
 
-__all__ = ["add_plant_arguments", "params_from_args", "parse_param"]
+__all__ = ["DEFAULT_SET", "add_plant_arguments", "params_from_args", "params_given",
+           "parse_param", "set_name"]
+
+#: The parameter set of every command when ``--set`` is not given.
+DEFAULT_SET = "paper"
 
 
 def add_plant_arguments(parser: argparse.ArgumentParser) -> None:
     """Add ``--set``, ``--params`` and repeated ``--param`` to ``parser``."""
     group = parser.add_argument_group("plant parameters")
-    group.add_argument("--set", dest="param_set", default="paper", metavar="NAME",
+    group.add_argument("--set", dest="param_set", default=None, metavar="NAME",
                        help=f"named parameter set: {', '.join(SET_NAMES)} (default: paper)")
     group.add_argument("--params", dest="param_file", type=Path, default=None,
                        metavar="FILE.toml",
@@ -56,9 +60,20 @@ def parse_param(text: str) -> tuple[str, float]:
     return name, number
 
 
+def set_name(args: Any) -> str:
+    """The parameter set ``--set`` names (``paper`` when not given)."""
+    return str(args.param_set or DEFAULT_SET)
+
+
+def params_given(args: Any) -> bool:
+    """Whether any of ``--set``, ``--params``, ``--param`` was given."""
+    return bool(args.param_set is not None or args.param_file is not None
+                or args.param_overrides)
+
+
 def params_from_args(args: Any) -> ServoParams:
     """Build the :class:`ServoParams` selected by the options of :func:`add_plant_arguments`."""
-    params = named_set(args.param_set)
+    params = named_set(set_name(args))
     if args.param_file is not None:
         params = load_toml(args.param_file, params)
     overrides: dict[str, float] = {}

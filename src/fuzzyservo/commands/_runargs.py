@@ -11,7 +11,7 @@ from typing import Any
 
 from ..analysis.autotune import TunedGains
 from ..errors import InputError, ParameterError
-from ..files import read_gains_toml
+from ..files import GainsFile, read_gains_file
 from ..plant import ServoParams
 from ..registry import controller_kind, controller_names, plant_names
 from ..sim import DEFAULT_DELAY
@@ -36,11 +36,12 @@ OPTION_FLAGS: dict[str, str] = {
 }
 
 
-def add_plant_choice(parser: argparse.ArgumentParser | Any, default: str) -> None:
-    """``--plant NAME``, one of the registry's plants."""
+def add_plant_choice(parser: argparse.ArgumentParser | Any, default: str | None) -> None:
+    """``--plant NAME``, one of the registry's plants (``default`` None: decided later)."""
     names = plant_names()
+    shown = default or "the gains file's, else nonlinear"
     parser.add_argument("--plant", choices=names, default=default, metavar="NAME",
-                        help=f"plant model: {', '.join(names)} (default {default}; "
+                        help=f"plant model: {', '.join(names)} (default {shown}; "
                              "docs/model.md, 'Plant models')")
 
 
@@ -125,12 +126,16 @@ class ControllerChoice:
     """What ``--controller``, ``--gains`` and ``--ts`` select."""
 
     def __init__(self, kind: str, gains: dict[str, float], ts: float,
-                 source: TunedGains | None, path: Path | None) -> None:
+                 source: GainsFile | None) -> None:
         self.kind = kind  #: registry name
         self.gains = gains  #: every gain of the kind, checked [SI]
         self.ts = ts  #: sample time [s]
-        self.source = source  #: the gains file's record, if one was read
-        self.path = path  #: the gains file, if one was read
+        self.source = source  #: the gains file, if one was read
+
+    @property
+    def tuned(self) -> TunedGains | None:
+        """The tuning record of the gains file, if it has one."""
+        return None if self.source is None else self.source.tuned
 
     def build(self, args: argparse.Namespace) -> Any:
         """The controller, with the options given on the command line."""
@@ -147,15 +152,12 @@ class ControllerChoice:
         return kind.build(self.gains, dt=self.ts, options=options)
 
 
-def _is_file(text: str) -> bool:
-    return text.lower().endswith(".toml") or ("=" not in text and Path(text).exists())
-
-
 def controller_from_args(args: argparse.Namespace, *, default_ts: float = 1e-3
                          ) -> ControllerChoice:
     """The controller kind, gains and sample time selected on the command line.
 
-    With a gains file the controller is the file's (``--controller``, if given, must agree)
+    ``--gains`` is a gains file unless it holds ``NAME=VALUE`` pairs (a pair always has
+    ``=``). With a file the controller is the file's (``--controller``, if given, must agree)
     and the sample time defaults to the file's ``tuning.ts`` (the fuzzy PIs' ``kde`` is per
     sample). ``--ts`` overrides it.
 
@@ -165,18 +167,18 @@ def controller_from_args(args: argparse.Namespace, *, default_ts: float = 1e-3
         No controller, disagreeing names, bad gains, a bad sample time or an unreadable file.
     """
     text = args.gains
-    source: TunedGains | None = None
-    path: Path | None = None
-    if text is not None and _is_file(text):
-        path = Path(text)
-        source = read_gains_toml(path)
+    source: GainsFile | None = None
+    if text is not None and not text.strip():
+        raise InputError("--gains is empty: give a gains file or NAME=VALUE pairs")
+    if text is not None and "=" not in text:
+        source = read_gains_file(Path(text))
         if args.controller is not None and args.controller != source.controller:
             raise InputError(f"the gains file {text!r} is for controller {source.controller}, "
                              f"not --controller {args.controller}; drop --controller or give "
                              f"a file of that controller")
         name = source.controller
         gains = dict(source.gains)
-        ts = source.setup.ts if args.ts is None else args.ts
+        ts = args.ts if args.ts is not None else (source.ts or default_ts)
     else:
         if args.controller is None:
             names = ", ".join(controller_names())
@@ -187,6 +189,5 @@ def controller_from_args(args: argparse.Namespace, *, default_ts: float = 1e-3
         ts = default_ts if args.ts is None else args.ts
     if not (isinstance(ts, float | int) and math.isfinite(ts) and ts > 0.0):
         raise ParameterError(f"--ts must be finite and > 0 s, got {ts!r}")
-    where = f"{str(path)!r}: " if path is not None else ""
-    checked = controller_kind(name).check_gains(gains, where=where)
-    return ControllerChoice(name, checked, float(ts), source, path)
+    checked = controller_kind(name).check_gains(gains)
+    return ControllerChoice(name, checked, float(ts), source)

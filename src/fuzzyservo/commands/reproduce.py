@@ -22,7 +22,7 @@ from .. import __version__
 from ..errors import InputError, ParameterError
 from ..study.paper_study import StudyConfig
 from ..study.runner import PLANTS, reproduce
-from ._plantargs import add_plant_arguments, params_from_args
+from ._plantargs import add_plant_arguments, params_from_args, set_name
 
 __all__ = ["MIN_DURATION", "register", "run"]
 
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
             f"--duration must be at least {MIN_DURATION:g} s so that the claims can be judged "
             f"on settled responses, got {args.duration!r}")
     params = params_from_args(args)
-    cfg = StudyConfig(params=params, set_name=args.param_set, duration=args.duration)
+    cfg = StudyConfig(params=params, set_name=set_name(args), duration=args.duration)
     plants = PLANTS if args.plant == "both" else (args.plant,)
     total = len(plants) * (3 + (4 if args.retune else 0)) + 2
     quiet = args.quiet
@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     meta = {
         "fuzzyservo": __version__,
         "generated": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
-        "parameter set": args.param_set + (" with " + ", ".join(args.param_overrides)
+        "parameter set": set_name(args) + (" with " + ", ".join(args.param_overrides)
                                            if args.param_overrides else ""),
         "gains": "re-tuned in this run" if args.retune else
                  str(args.gains_dir or "committed tuned gains (fuzzyservo/data/gains)"),

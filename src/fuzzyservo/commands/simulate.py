@@ -1,8 +1,11 @@
 """``fuzzyservo simulate``: run the servo in closed or open loop; write a CSV, metrics, a figure.
 
 Closed loop: ``--controller NAME --gains NAME=VALUE,...`` or ``--gains FILE.toml`` (a file
-``fuzzyservo tune`` writes; its controller and sample time are used), a ``--reference`` offset
-from the start position. Open loop: ``--open-loop --command U``. Any plant of the registry
+``fuzzyservo tune`` writes, or a hand-written ``controller`` and ``[gains]``), a
+``--reference`` offset from the start position. A gains file with a tuning record runs as
+tuned: its plant, parameter set and overrides, start, step, duration, delay and sample time
+fill every option not given, and a note on standard error says which, and what differs.
+Open loop: ``--open-loop --command U``. Any plant of the registry
 (``--plant linear|small-signal|nonlinear``) in either. The hose delay is none unless
 ``--delay S`` or ``--delay hose`` asks for it, as in every other entry point.
 
@@ -17,16 +20,20 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..analysis.autotune import TunedGains
 from ..errors import InputError, ParameterError
+from ..paper import named_set
+from ..plant import ServoParams, with_overrides
 from ..plots.runs import FIGURE_FORMATS, runs_figure, save_figure
-from ..registry import DEFAULT_SUBSTEP, build_plant
+from ..registry import DEFAULT_SUBSTEP, build_plant, controller_kind
 from ..sim import parse_reference, simulate, simulate_open_loop
-from ._plantargs import add_plant_arguments, params_from_args
+from ._plantargs import add_plant_arguments, params_from_args, params_given
 from ._runargs import (
     add_controller_arguments,
     add_delay_argument,
@@ -53,14 +60,15 @@ def register(subparsers: Any) -> None:
                 "loop t, u, y, then the plant's states. t [s]; r, y [m]; u [-], fraction of "
                 "the rated valve input; alpha [-] (NaN for the PID family)."),
     )
-    add_plant_choice(parser, "nonlinear")
-    parser.add_argument("--duration", type=float, default=2.0, metavar="S",
-                        help="simulated time [s] (default 2)")
+    add_plant_choice(parser, None)
+    parser.add_argument("--duration", type=float, default=None, metavar="S",
+                        help="simulated time [s] (default: the gains file's, else 2)")
     parser.add_argument("--ts", "--dt", dest="ts", type=float, default=None, metavar="S",
                         help="controller sample time and CSV step [s] (default: the gains "
                              "file's, else 0.001)")
-    parser.add_argument("--start", type=float, default=0.5, metavar="FRACTION",
-                        help="start position as a fraction of the stroke (default 0.5)")
+    parser.add_argument("--start", type=float, default=None, metavar="FRACTION",
+                        help="start position as a fraction of the stroke (default: the "
+                             "gains file's, else 0.5)")
     add_delay_argument(parser)
     parser.add_argument("--substep", type=float, default=DEFAULT_SUBSTEP, metavar="S",
                         help="nonlinear plant: RK4 step bound [s] (default "
@@ -74,10 +82,11 @@ def register(subparsers: Any) -> None:
                      help="plot position, reference, command (and alpha) of the run")
     cl = parser.add_argument_group("closed loop")
     add_controller_arguments(cl)
-    cl.add_argument("--reference", default="step:0.1", metavar="SPEC",
+    cl.add_argument("--reference", default=None, metavar="SPEC",
                     help="reference offset from the start position [m]: step:A[:T], "
                          "multistep:T1=A1,..., ramp:SLOPE[:T[:FINAL]], sine:A:F, "
-                         "trapezoid:DIST:VMAX:AMAX[:T] (default step:0.1)")
+                         "trapezoid:DIST:VMAX:AMAX[:T] (default: the gains file's step, "
+                         "else step:0.1)")
     cl.add_argument("--noise-std", type=float, default=0.0, metavar="M",
                     help="measurement noise standard deviation [m] (default 0)")
     cl.add_argument("--seed", type=int, default=0, help="seed of the noise generator")
@@ -120,16 +129,88 @@ def _write(result: Any, out: str | None) -> None:
         raise InputError(f"cannot write {out!r}: {exc.strerror or exc}") from exc
 
 
+#: Defaults of the run options when neither the command line nor a gains file sets them.
+DEFAULTS: dict[str, Any] = {"plant": "nonlinear", "start": 0.5, "duration": 2.0,
+                            "reference": "step:0.1"}
+
+
+@dataclass(frozen=True, slots=True)
+class RunSettings:
+    """The run a command line asks for, after a gains file's record filled the gaps."""
+
+    plant: str  #: registered plant name
+    start: float  #: start position, fraction of the stroke [-]
+    duration: float  #: simulated time [s]
+    reference: str  #: reference spec (offset from the start) [m]
+    delay: float  #: transport delay [s]
+    params: ServoParams  #: servo parameters
+    notes: tuple[str, ...]  #: what came from the gains file, and what differs from it
+
+
+def _settings(args: argparse.Namespace, tuned: TunedGains | None, ts: float,
+              path: str) -> RunSettings:
+    """Options given win; a gains file's tuning record fills the others ("as tuned");
+    the package defaults fill the rest (no delay, see docs/model.md)."""
+    s = tuned.setup if tuned is not None else None
+    from_file: list[str] = []
+
+    def pick(name: str, given: Any, recorded: Any, shown: str) -> Any:
+        if given is not None:
+            return given
+        if recorded is not None:
+            from_file.append(shown.format(recorded))
+            return recorded
+        return DEFAULTS[name]
+
+    plant = pick("plant", args.plant, s and s.plant, "the {} plant")
+    start = pick("start", args.start, s and s.start, "start {:g}")
+    duration = pick("duration", args.duration, s and s.duration, "{:g} s")
+    reference = pick("reference", args.reference, s and f"step:{s.step!r}", "reference {}")
+    if s is not None and not params_given(args):
+        params = with_overrides(named_set(s.param_set), dict(s.overrides))
+        from_file.append(f"set {s.param_set}" + "".join(f", {k}={v!r}" for k, v in
+                                                         s.overrides))
+    else:
+        params = params_from_args(args)
+    if args.delay is None and s is not None:
+        delay = s.delay
+        from_file.append(f"delay {delay:g} s")
+    else:
+        delay = delay_from_args(args.delay, params)
+    if args.ts is None and s is not None:
+        from_file.append(f"ts {s.ts:g} s")
+    notes = []
+    if from_file:
+        notes.append(f"{path}: as tuned, " + ", ".join(from_file))
+    if s is not None:
+        differs = []
+        if plant != s.plant:
+            differs.append(f"on the {s.plant} plant")
+        if delay != s.delay:
+            differs.append(f"with a delay of {s.delay:g} s")
+        if ts != s.ts:
+            differs.append(f"at ts = {s.ts:g} s")
+        if differs:
+            notes.append(f"{path} was tuned {' and '.join(differs)}; this run differs"
+                         + (" (kde is per sample: the same gains act differently)"
+                            if ts != s.ts and _per_sample(s.controller) else ""))
+    if not 0.0 < start < 1.0:
+        raise ParameterError(f"--start must be a fraction of the stroke in (0, 1), "
+                             f"got {start!r}")
+    return RunSettings(plant=plant, start=start, duration=duration, reference=reference,
+                       delay=delay, params=params, notes=tuple(notes))
+
+
+def _per_sample(controller: str) -> bool:
+    """Whether a gain of the kind is per sample (its meaning changes with the sample time)."""
+    return any("per sample" in g.unit for g in controller_kind(controller).gains)
+
+
 def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo simulate``."""
     _check_outputs(args)
-    if not 0.0 < args.start < 1.0:
-        raise ParameterError(f"--start must be a fraction of the stroke in (0, 1), "
-                             f"got {args.start!r}")
     if not (math.isfinite(args.substep) and args.substep > 0.0):
         raise ParameterError(f"--substep must be finite and > 0 s, got {args.substep!r}")
-    params = params_from_args(args)
-    delay = delay_from_args(args.delay, params)
     if args.open_loop:
         if args.controller is not None or args.gains is not None:
             raise InputError("--open-loop applies --command, not a controller: drop "
@@ -140,25 +221,32 @@ def run(args: argparse.Namespace) -> int:
         if not (math.isfinite(args.command) and -1.0 <= args.command <= 1.0):
             raise ParameterError(f"--command must be in [-1, 1] (fraction of rated input), "
                                  f"got {args.command!r}")
+        if args.noise_std or args.reference is not None:
+            raise InputError("--noise-std and --reference belong to the closed loop; the open "
+                             "loop applies --command")
         ts = 1e-3 if args.ts is None else args.ts
-        plant = build_plant(args.plant, params, args.start * params.cylinder.stroke,
+        run_ = _settings(args, None, ts, "")
+        plant = build_plant(run_.plant, run_.params, run_.start * run_.params.cylinder.stroke,
                             substep=args.substep)
-        result: Any = simulate_open_loop(plant, args.command, duration=args.duration, dt=ts,
-                                         delay=delay, method=args.method)
-        title = f"open loop, u = {args.command:g}, {args.plant} plant"
+        result: Any = simulate_open_loop(plant, args.command, duration=run_.duration, dt=ts,
+                                         delay=run_.delay, method=args.method)
+        title = f"open loop, u = {args.command:g}, {run_.plant} plant"
     else:
         if args.command is not None:
             raise InputError("--command is the open-loop command: add --open-loop, or drop it")
         choice = controller_from_args(args)
         ctl = choice.build(args)
-        reference = parse_reference(args.reference)
+        run_ = _settings(args, choice.tuned, choice.ts, str(args.gains))
+        reference = parse_reference(run_.reference)
         if args.seed < 0:
             raise ParameterError(f"--seed must be a non-negative integer, got {args.seed}")
-        plant = build_plant(args.plant, params, args.start * params.cylinder.stroke,
+        plant = build_plant(run_.plant, run_.params, run_.start * run_.params.cylinder.stroke,
                             substep=args.substep)
-        result = simulate(ctl, plant, reference, duration=args.duration, delay=delay,
+        result = simulate(ctl, plant, reference, duration=run_.duration, delay=run_.delay,
                           noise_std=args.noise_std, rng=np.random.default_rng(args.seed))
-        title = f"{choice.kind} on the {args.plant} plant, reference {args.reference}"
+        title = f"{choice.kind} on the {run_.plant} plant, reference {run_.reference}"
+    for note in run_.notes:
+        print(f"fuzzyservo: note: {note}", file=sys.stderr)
     _write(result, args.out)
     if args.metrics:
         print_metrics(result.metrics().as_dict())

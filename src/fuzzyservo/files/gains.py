@@ -1,17 +1,30 @@
-"""Gains files: the TOML a tuning writes, and controllers built from it.
+"""Gains files: the TOML a tuning writes (or a user writes), and controllers built from it.
 
-A gains file holds the controller name (a registry name) and its gains, the tuning setup that
-produced them (plant, parameter set and overrides, start, step, duration, sample time, delay,
-objective, constraints, seed, population, bounds), the step metrics of the tuned run, each
-stage, the fuzzyservo version and the date. :func:`read_gains_toml` names the missing or
-mistyped key of a bad file; :func:`load_controller` builds the controller of a file through
-the registry, at the file's sample time unless told otherwise (``kde`` is per sample).
+A gains file holds the controller name (a registry name) and its gains::
+
+    controller = "pid2"
+    [gains]
+    kp = 10.0
+    ki = 10.0
+    kd = 0.1
+    b = 0.0
+    c = 0.0
+
+That is a complete file a user may write by hand. A file ``fuzzyservo tune`` writes adds the
+tuning record: the setup that produced the gains (``[tuning]``: plant, parameter set and
+overrides, start, step, duration, sample time, delay, objective, constraints, seed,
+population, bounds), the step metrics of the tuned run (``[metrics]``), each stage, the
+fuzzyservo version and the date (``[result]``). :func:`read_gains_file` reads either;
+:func:`read_gains_toml` reads a tuning record and names the missing or mistyped key of a bad
+one; :func:`load_controller` builds the controller of a file through the registry, at the
+file's sample time unless told otherwise (the fuzzy PIs' ``kde`` is per sample).
 """
 
 from __future__ import annotations
 
 import tomllib
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +36,8 @@ from ..control.fuzzy_pi import KernelSystem
 from ..errors import InputError, ParameterError
 from ..registry import controller_kind
 
-__all__ = ["FORMAT", "load_controller", "read_gains_toml", "write_gains_toml"]
+__all__ = ["FORMAT", "GainsFile", "load_controller", "read_gains_file", "read_gains_toml",
+           "write_gains_toml"]
 
 #: Version of the file layout written.
 FORMAT = 1
@@ -112,12 +126,7 @@ def read_gains_toml(path: str | Path) -> TunedGains:
         message names the key), or its controller or gains are not valid.
     """
     path = Path(path)
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise InputError(f"cannot read gains file {str(path)!r}: {exc.strerror}") from exc
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{str(path)!r} is not valid TOML: {exc}") from exc
+    doc = _load_toml(path)
     rd = _Reader(path)
     controller = rd.get(doc, "controller", str, "")
     where = f"{str(path)!r}: "
@@ -189,18 +198,79 @@ def read_gains_toml(path: str | Path) -> TunedGains:
         version=rd.get(res, "fuzzyservo_version", str, w), date=rd.get(res, "date", str, w))
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GainsFile:
+    """A controller as a file gives it."""
+
+    path: Path  #: the file
+    controller: str  #: registered controller name
+    gains: dict[str, float]  #: every gain of the kind (defaults filled in) [gain units]
+    tuned: TunedGains | None  #: the tuning record of a file ``tune`` wrote, else None
+
+    @property
+    def ts(self) -> float | None:
+        """Sample time the gains were tuned at [s], or None (no tuning record)."""
+        return None if self.tuned is None else self.tuned.setup.ts
+
+
+def _load_toml(path: Path) -> dict[str, Any]:
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except IsADirectoryError:
+        raise InputError(f"gains file {str(path)!r} is a directory") from None
+    except OSError as exc:
+        raise InputError(f"cannot read gains file {str(path)!r}: {exc.strerror}") from exc
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{str(path)!r} is not valid TOML: {exc}") from exc
+
+
+def read_gains_file(path: str | Path) -> GainsFile:
+    """Read a gains file: ``controller`` and ``[gains]``, and the tuning record if present
+    (then read as :func:`read_gains_toml` reads it).
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, is not TOML, or its controller or gains are not valid (the
+        message names the file and the key or gain).
+    """
+    path = Path(path)
+    doc = _load_toml(path)
+    if any(k in doc for k in ("tuning", "result", "metrics", "stages")):
+        tuned = read_gains_toml(path)
+        return GainsFile(path=path, controller=tuned.controller, gains=dict(tuned.gains),
+                         tuned=tuned)
+    rd = _Reader(path)
+    controller = rd.get(doc, "controller", str, "")
+    where = f"{str(path)!r}: "
+    unknown = sorted(set(doc) - {"controller", "gains", "format"})
+    if unknown:
+        raise InputError(f"{where}unknown key '{unknown[0]}'; a gains file has controller, "
+                         f"[gains] and, when tune wrote it, [tuning], [result], [metrics], "
+                         f"[[stages]]")
+    try:
+        kind = controller_kind(controller)
+        gains = kind.check_gains(rd.floats(rd.get(doc, "gains", dict, ""), "gains."),
+                                 where=where)
+    except ParameterError as exc:
+        msg = str(exc)
+        raise InputError(msg if msg.startswith(where) else where + msg) from exc
+    return GainsFile(path=path, controller=controller, gains=gains, tuned=None)
+
+
 def load_controller(path: str | Path, *, dt: float | None = None,
                     systems: Mapping[str, KernelSystem] | None = None,
-                    options: Mapping[str, Any] | None = None) -> tuple[Any, TunedGains]:
-    """The controller of a gains file, built through the registry, and the file's record.
+                    options: Mapping[str, Any] | None = None) -> tuple[Any, GainsFile]:
+    """The controller of a gains file, built through the registry, and the file's content.
 
     Parameters
     ----------
     path : str or Path
-        Gains file (``fuzzyservo tune --out``, or a committed one).
+        Gains file (``fuzzyservo tune --out``, a committed one, or a hand-written one).
     dt : float, optional
         Sample period [s]; default the file's ``tuning.ts`` (the fuzzy PIs' ``kde`` is per
         sample, so the gains mean what they were tuned for only at that sample time).
+        Required for a file without a tuning record.
     systems : mapping, optional
         Fuzzy systems by role; default the paper's.
     options : mapping, optional
@@ -208,15 +278,20 @@ def load_controller(path: str | Path, *, dt: float | None = None,
 
     Returns
     -------
-    (controller, TunedGains)
+    (controller, GainsFile)
 
     Raises
     ------
     InputError
         The file cannot be read or is not a valid gains file.
+    ParameterError
+        No ``dt`` for a file that records no sample time.
     """
-    tuned = read_gains_toml(path)
-    ctl = controller_kind(tuned.controller).build(
-        tuned.gains, dt=tuned.setup.ts if dt is None else dt, systems=systems,
-        options=options)
-    return ctl, tuned
+    gf = read_gains_file(path)
+    ts = gf.ts if dt is None else dt
+    if ts is None:
+        raise ParameterError(f"{str(gf.path)!r} records no sample time (no tuning record): "
+                             f"give dt")
+    ctl = controller_kind(gf.controller).build(gf.gains, dt=ts, systems=systems,
+                                               options=options)
+    return ctl, gf

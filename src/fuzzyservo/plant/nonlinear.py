@@ -19,8 +19,9 @@ idx   name             unit     meaning
 ====  ===============  =======  ==========================================================
 
 The command ``u`` passed to :func:`rhs` is the command *at the valve*, i.e. already delayed by
-the hose transport delay; simulators apply the delay (a FIFO of whole samples in the closed
-loop, a time shift in open loop). ``u`` is limited to [-1, 1] (``COMMAND_LIMIT``) inside
+the hose transport delay; simulators apply the delay (any delay, a fraction of a sample
+included: ``plant.zoh.split_delay`` and the loops of ``sim.closed_loop``, in open and closed
+loop alike). ``u`` is limited to [-1, 1] (``COMMAND_LIMIT``) inside
 :func:`rhs`.
 
 Named physical limits (documented in docs/model.md):

@@ -28,9 +28,11 @@ __all__ = ["FIGURE_FORMATS", "RunCurve", "run_curves", "runs_figure", "save_figu
 #: File suffixes :func:`save_figure` writes.
 FIGURE_FORMATS: tuple[str, ...] = (".png", ".svg")
 
-#: One colour per run, in order (matplotlib's tab10, colour-blind-safer than the default).
+#: One colour per run, in order (matplotlib's tab10); after ten runs the colours repeat with
+#: another line style, so every run stays distinct.
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2",
             "#7f7f7f", "#bcbd22", "#17becf")
+_STYLES = ("-", "-.", ":")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -125,12 +127,13 @@ def runs_figure(runs: Sequence[Run], labels: Sequence[str] | None = None, *,
     ax_y, ax_u = axes[0], axes[1]
     for i, c in enumerate(curves):
         colour = _COLOURS[i % len(_COLOURS)]
-        ax_y.plot(c.t, c.y_mm, color=colour, lw=1.5, label=c.label)
+        ls = _STYLES[(i // len(_COLOURS)) % len(_STYLES)]
+        ax_y.plot(c.t, c.y_mm, color=colour, lw=1.5, ls=ls, label=c.label)
         if c.r_mm is not None:
             ax_y.plot(c.t, c.r_mm, color=colour, lw=1.0, ls="--")
-        ax_u.step(c.t, c.u_pct, where="post", color=colour, lw=1.2)
+        ax_u.step(c.t, c.u_pct, where="post", color=colour, lw=1.2, ls=ls)
         if with_alpha and c.alpha is not None:
-            axes[2].step(c.t, c.alpha, where="post", color=colour, lw=1.2)
+            axes[2].step(c.t, c.alpha, where="post", color=colour, lw=1.2, ls=ls)
     ax_y.set_ylabel("position x - x(0) [mm]" if relative else "position x [mm]")
     ax_u.set_ylabel("valve command u\n[% of rated input]")
     ax_u.axhline(0.0, color="black", lw=0.6)

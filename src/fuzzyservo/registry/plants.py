@@ -59,12 +59,16 @@ class PlantKind:
         (``substep`` [s] is the RK4 step bound of a nonlinear plant, unused by linear ones).
     force_input : bool
         Whether the model takes a load-force disturbance.
+    supply_ripple : bool
+        Whether a supply-pressure ripple (``supply.ripple_amplitude``) reaches the model (the
+        linearisations leave it out).
     """
 
     name: str
     title: str
     make: Callable[[ServoParams, float, float], Plant]
     force_input: bool = False
+    supply_ripple: bool = False
 
 
 def _linear(params: ServoParams, position: float, substep: float) -> Plant:
@@ -89,7 +93,7 @@ _PLANTS: dict[str, PlantKind] = {
                               title="small-signal linearisation of the nonlinear model",
                               make=_small_signal),
     "nonlinear": PlantKind(name="nonlinear", title="nonlinear two-chamber model (RK4)",
-                           make=_nonlinear, force_input=True),
+                           make=_nonlinear, force_input=True, supply_ripple=True),
 }
 
 #: Every plant kind by name (read-only view of the registry).

@@ -80,7 +80,7 @@ def _batch_linear(
         rbuf = np.empty(n_t)
         x = np.empty(nx_max)
         xn = np.empty(nx_max)
-        ring = np.empty(d_max + 2)
+        ring = np.empty(min(d_max, n_t) + 2)
         cs = np.empty(cs0.shape[1])
         no_x = np.empty((0, nx_max))
         no_xop = np.zeros(nx_max)
@@ -139,7 +139,7 @@ def _batch_nonlinear(
         x = np.empty(nx)
         p = np.empty(pps.shape[1])
         work = np.empty((5, nx))
-        ring = np.empty(d_max + 2)
+        ring = np.empty(min(d_max, n_t) + 2)
         cs = np.empty(cs0.shape[1])
         no_x = np.empty((0, nx))
         no_noise = np.empty(0)
@@ -172,12 +172,13 @@ def _batch_nonlinear(
                                   mopts[2], mopts[3], metrics[i])
 
 
-def _broadcast(n_a: int, n_b: int, what: str) -> int:
-    if n_a == n_b or n_b == 1:
-        return n_a
-    if n_a == 1:
-        return n_b
-    raise ParameterError(f"{what}: {n_a} gain rows but {n_b} plants; give equal counts or one")
+def _runs(counts: dict[str, int]) -> int:
+    """The number of runs: every count is 1 (repeated) or the same n."""
+    sizes = {v for v in counts.values() if v != 1}
+    if len(sizes) > 1:
+        given = ", ".join(f"{v} {k}" for k, v in counts.items())
+        raise ParameterError(f"simulate_batch: {given}; give equal counts or one")
+    return sizes.pop() if sizes else 1
 
 
 def simulate_batch(
@@ -252,11 +253,9 @@ def simulate_batch(
     kinds = {type(p) for p in plants}
     if len(kinds) != 1:
         raise ParameterError("all plants of a batch must be of one kind (linear or nonlinear)")
-    n = _broadcast(cps.shape[0], len(plants), "simulate_batch")
-    delays = np.broadcast_to(np.asarray(delay, dtype=np.float64), (n,)).copy() \
-        if np.ndim(delay) == 0 or np.size(delay) in (1, n) else None
-    if delays is None:
-        raise ParameterError(f"delay needs one value or one per run ({n}), got {np.size(delay)}")
+    d_arr = np.asarray(delay, dtype=np.float64).reshape(-1)
+    n = _runs({"gain rows": cps.shape[0], "plants": len(plants), "delays": d_arr.size})
+    delays = np.broadcast_to(d_arr, (n,)).copy()
     for dv in delays:
         check_delay(float(dv))
     if cps.shape[0] == 1 and n > 1:
@@ -288,7 +287,7 @@ def simulate_batch(
             assert isinstance(p, LinearPlant)
             key = (id(p), float(dv))
             if key not in cache:
-                cache[key] = p.discretise(ts, float(dv))
+                cache[key] = p.discretize(ts, float(dv))
             rows.append(cache[key])
         width = max(r.size for r in rows)
         lps = np.zeros((n, width))

@@ -55,6 +55,7 @@ __all__ = [
     "run_linear",
     "run_loop",
     "run_nonlinear",
+    "ring_size",
     "simulate",
     "time_grid",
 ]
@@ -159,7 +160,7 @@ class LinearPlant:
         """Output at rest [m]: C x_op."""
         return float(self.c @ self.x_op)
 
-    def discretise(self, ts: float, delay: float) -> FloatArray:
+    def discretize(self, ts: float, delay: float) -> FloatArray:
         """Packed ZOH discretisation with delay (:func:`fuzzyservo.plant.zoh.discretize`):
         [n, d, Φ (n·n), Γ0 (n), Γ1 (n), C (n)]."""
         m = discretize(self.a, self.b, ts, delay)
@@ -236,20 +237,43 @@ Plant = LinearPlant | NonlinearPlant
 DEFAULT_DELAY = 0.0
 
 
-@numba.njit(cache=True, nogil=True)
-def _delayed(ubuf: FloatArray, w: int, k: int, d: int, u_init: float) -> tuple[float, float]:
-    """Commands u_{k-d} and u_{k-d-1} from the ring buffer whose slot ``w`` holds u_k
-    (``u_init`` before t_0); no integer division in the loop."""
+def ring_size(d: int, n: int) -> int:
+    """Length of the command ring buffer for a delay of ``d`` whole samples in a run of ``n``
+    samples: d + 2, but never more than the run needs (a command delayed past the end of the
+    run never reaches the plant)."""
+    return min(d, n) + 2
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _command(kind: int, cp: FloatArray, cs: FloatArray, du_rules: IntArray,
+             du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray, r: float, y: float,
+             k: int, d: int, u_init: float, ubuf: FloatArray, w: int, y_out: FloatArray,
+             u_out: FloatArray, a_out: FloatArray) -> tuple[float, float, int]:
+    """Sample k of a loop: the controller's command from (r, y), recorded with y and α, pushed
+    into the ring buffer at slot ``w``; returns the plant's inputs over the coming interval,
+    u_{k-d} and u_{k-d-1} (``u_init`` before t_0), and the next slot. Shared by both plants."""
+    u = controller_step(kind, cp, cs, r, y, du_rules, du_lims, a_rules, a_lims)
+    y_out[k] = y
+    u_out[k] = u
+    a_out[k] = cs[STATE_ALPHA]
     n = ubuf.shape[0]
-    j0 = w - d
-    if j0 < 0:
-        j0 += n
-    j1 = j0 - 1
-    if j1 < 0:
-        j1 += n
-    u0 = ubuf[j0] if k - d >= 0 else u_init
-    u1 = ubuf[j1] if k - d - 1 >= 0 else u_init
-    return u0, u1
+    ubuf[w] = u
+    u0 = u_init
+    u1 = u_init
+    if k - d >= 0:  # then d <= k, and the ring holds d + 2 commands
+        j0 = w - d
+        if j0 < 0:
+            j0 += n
+        u0 = ubuf[j0]
+        if k - d - 1 >= 0:
+            j1 = j0 - 1
+            if j1 < 0:
+                j1 += n
+            u1 = ubuf[j1]
+    w += 1
+    if w == n:
+        w = 0
+    return u0, u1, w
 
 
 @numba.njit(cache=True, nogil=True)
@@ -260,12 +284,12 @@ def run_linear(
     y0: float, x: FloatArray, xn: FloatArray, ubuf: FloatArray,
     y_out: FloatArray, u_out: FloatArray, a_out: FloatArray, x_out: FloatArray,
 ) -> int:
-    """One closed loop on a packed linear plant ``lp`` (see ``LinearPlant.discretise``).
+    """One closed loop on a packed linear plant ``lp`` (see ``LinearPlant.discretize``).
 
     The plant propagates the deviation ``x`` from its operating point (start value, updated
     in place) under the input u - ``u_op``; y = ``y0`` + C x; commands before t_0 are
     ``u_op``; rows of ``x_out`` are the absolute states ``x_op`` + x. ``cs`` (controller
-    state) is updated in place; ``ubuf`` is a ring buffer of at least d + 2 commands;
+    state) is updated in place; ``ubuf`` is a ring buffer of :func:`ring_size` commands;
     ``noise`` is empty or one value per sample; ``x_out`` is (len(r), n) to keep states or
     (0, n) not to. The plant is not advanced past the last sample. Returns the index of the
     first sample with a non-finite state, or -1.
@@ -291,17 +315,10 @@ def run_linear(
             return k
         if has_noise:
             y += noise[k]
-        u = controller_step(kind, cp, cs, r[k], y, du_rules, du_lims, a_rules, a_lims)
-        y_out[k] = y
-        u_out[k] = u
-        a_out[k] = cs[STATE_ALPHA]
+        u0, u1, w = _command(kind, cp, cs, du_rules, du_lims, a_rules, a_lims, r[k], y, k, d,
+                             u_op, ubuf, w, y_out, u_out, a_out)
         if k == last:
             break
-        ubuf[w] = u
-        u0, u1 = _delayed(ubuf, w, k, d, u_op)
-        w += 1
-        if w == ubuf.shape[0]:
-            w = 0
         u0 -= u_op
         u1 -= u_op
         for i in range(n):
@@ -354,17 +371,10 @@ def run_nonlinear(
             y += noise[k]
         if res > 0.0:
             y = res * math.floor(y / res + 0.5)
-        u = controller_step(kind, cp, cs, r[k], y, du_rules, du_lims, a_rules, a_lims)
-        y_out[k] = y
-        u_out[k] = u
-        a_out[k] = cs[STATE_ALPHA]
+        u0, u1, w = _command(kind, cp, cs, du_rules, du_lims, a_rules, a_lims, r[k], y, k, d,
+                             u_init, ubuf, w, y_out, u_out, a_out)
         if k == last:
             break
-        ubuf[w] = u
-        u0, u1 = _delayed(ubuf, w, k, d, u_init)
-        w += 1
-        if w == ubuf.shape[0]:
-            w = 0
         if has_force:
             p[P_FEXT] = force[k]
         ok = True
@@ -449,11 +459,11 @@ def run_loop(controller: PackedController, plant: Plant, r: FloatArray, *, delay
     if isinstance(plant, LinearPlant):
         if disturbance is not None:
             raise ParameterError("a load-force disturbance needs the nonlinear plant")
-        lp = plant.discretise(ts, delay)
+        lp = plant.discretize(ts, delay)
         nx = plant.n_states
         x = np.zeros(nx)
         xs = np.empty((n, nx))
-        ubuf = np.zeros(int(lp[1]) + 2)
+        ubuf = np.zeros(ring_size(int(lp[1]), n))
         bad = run_linear(controller.kind, cp, cs, *tabs, lp, plant.u0, plant.x_op, r, noise,
                          plant.y0, x, np.empty(nx), ubuf, y, u, a, xs)
         x = plant.x_op + x
@@ -464,7 +474,7 @@ def run_loop(controller: PackedController, plant: Plant, r: FloatArray, *, delay
         xs = np.empty((n, x.size))
         bad = run_nonlinear(controller.kind, cp, cs, *tabs, plant.packed.copy(), ts, d, f,
                             plant.n_sub(ts), plant.u0, r, noise, force, x,
-                            np.empty((5, x.size)), np.zeros(d + 2), y, u, a, xs)
+                            np.empty((5, x.size)), np.zeros(ring_size(d, n)), y, u, a, xs)
     if bad >= 0:
         raise_diverged(bad * ts, x, plant.state_names, what)
     return RawRun(y=y, u=u, alpha=a, x=xs)

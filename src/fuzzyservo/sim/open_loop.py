@@ -27,7 +27,7 @@ from .._typing import ArrayLike, FloatArray
 from ..control.command import CommandSchedule
 from ..errors import InputError, ParameterError
 from ..plant import COMMAND_LIMIT, N_STATE, rhs
-from ..plant.nonlinear import P_AF, P_G, P_L, P_PS, P_WV, check_finite
+from ..plant.nonlinear import P_AF, P_G, P_L, P_PS, P_RES, P_WV, check_finite
 from ..plant.zoh import split_delay
 from .closed_loop import DEFAULT_DELAY, NonlinearPlant, Plant, check_delay, run_loop, time_grid
 from .result import write_csv
@@ -197,6 +197,9 @@ def simulate_open_loop(
                                  "the linear plants are discretised exactly (method 'rk4')")
         states = _run_solve_ivp(plant, u_cmd, dt, delay, solver, rtol)
         y = states[:, plant.state_names.index("x")].copy()
+        res = float(plant.packed[P_RES])
+        if res > 0.0:  # the transducer's quantisation, as the compiled loop applies it
+            y = res * np.floor(y / res + 0.5)
         used = f"solve_ivp:{solver}"
     else:
         # the schedule is the "reference"; the last command is repeated for the final row

@@ -29,7 +29,7 @@ from ..paper import PAPER_PIDS
 from ..plant import ServoParams, with_overrides
 from ..registry import build_controller as registry_build_controller
 from ..registry import build_plant as registry_build_plant
-from ..registry import controller_kind
+from ..registry import controller_kind, plant_kind
 from ..sim import DEFAULT_DELAY, Plant, SimResult, simulate
 from ..sim.batch import simulate_batch
 from ..sim.references import Step
@@ -179,7 +179,7 @@ def variants(kind: str, params: ServoParams) -> dict[str, ServoParams]:
         "supply pressure -500 kPa": with_overrides(
             params, {"supply.pressure": params.supply.pressure - 5.0e5}),
     }
-    if kind == "nonlinear":
+    if plant_kind(kind).supply_ripple:  # only a model with the supply in it feels a ripple
         out["supply ripple +-500 kPa"] = with_overrides(
             params, {"supply.ripple_amplitude": 5.0e5})
     return out

@@ -23,6 +23,7 @@ from ..files import read_gains_toml, write_gains_toml
 from ..paper import alpha_system, du_system
 from ..plant import to_dict
 from ..plots.figures import fig3
+from ..registry import controller_kind
 from .claims import NO_OVERSHOOT_PCT
 from .outputs import write_outputs
 from .paper_study import TUNED_DESIGNS, PlantStudy, StudyConfig, run_plant_study
@@ -76,10 +77,11 @@ def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
         tuned = tune_controller(setup, params)
         out[name] = tuned
         write_gains_toml(gains_dir / f"{plant}-{name}.toml", tuned)
-        if name.startswith("stfpi"):
-            fpi_name = name.replace("stfpi", "fpi")
-            out[fpi_name] = stage_as_tuned(tuned, "fpi")
-            write_gains_toml(gains_dir / f"{plant}-{fpi_name}.toml", out[fpi_name])
+        first = controller_kind(setup.controller).stage_kind
+        if first is not None:  # step 1 of the paper's procedure is a design of its own
+            stage_name = name.replace(setup.controller, first)
+            out[stage_name] = stage_as_tuned(tuned, first)
+            write_gains_toml(gains_dir / f"{plant}-{stage_name}.toml", out[stage_name])
         if progress is not None:
             progress(f"{plant}: tuned {name}")
     return out
