@@ -126,7 +126,11 @@ def read_gains_toml(path: str | Path) -> TunedGains:
         message names the key), or its controller or gains are not valid.
     """
     path = Path(path)
-    doc = _load_toml(path)
+    return _tuned_from_doc(path, _load_toml(path))
+
+
+def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
+    """The tuning record of a parsed gains file (see :func:`read_gains_toml`)."""
     rd = _Reader(path)
     controller = rd.get(doc, "controller", str, "")
     where = f"{str(path)!r}: "
@@ -237,7 +241,7 @@ def read_gains_file(path: str | Path) -> GainsFile:
     path = Path(path)
     doc = _load_toml(path)
     if any(k in doc for k in ("tuning", "result", "metrics", "stages")):
-        tuned = read_gains_toml(path)
+        tuned = _tuned_from_doc(path, doc)
         return GainsFile(path=path, controller=tuned.controller, gains=dict(tuned.gains),
                          tuned=tuned)
     rd = _Reader(path)

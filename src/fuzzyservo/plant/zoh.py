@@ -29,11 +29,28 @@ import numpy as np
 from .._typing import ArrayLike, FloatArray
 from ..errors import ParameterError
 
-__all__ = ["DiscreteModel", "discretize", "expm", "split_delay"]
+__all__ = ["DiscreteModel", "check_delay", "discretize", "expm", "split_delay"]
 
 #: Relative slack when a delay is read as whole samples: a delay within 1e-9 samples of a
 #: multiple of ts is that multiple (so 0.006 s at ts = 0.001 s is 6 samples despite rounding).
 _WHOLE_SAMPLE_TOL = 1e-9
+
+
+def check_delay(delay: float) -> float:
+    """A transport delay [s], validated: finite and >= 0.
+
+    Raises
+    ------
+    ParameterError
+        Otherwise.
+    """
+    try:
+        value = float(delay)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ParameterError(f"delay must be finite and >= 0 s, got {delay!r}")
+    return value
 
 
 def split_delay(delay: float, ts: float) -> tuple[int, float]:
@@ -48,8 +65,7 @@ def split_delay(delay: float, ts: float) -> tuple[int, float]:
     """
     if not (isinstance(ts, int | float) and math.isfinite(ts) and ts > 0.0):
         raise ParameterError(f"sample time ts must be finite and > 0 s, got {ts!r}")
-    if not (isinstance(delay, int | float) and math.isfinite(delay) and delay >= 0.0):
-        raise ParameterError(f"delay must be finite and >= 0 s, got {delay!r}")
+    delay = check_delay(delay)
     d = int(math.floor(delay / ts + _WHOLE_SAMPLE_TOL))
     f = delay - d * ts
     return d, (0.0 if f < _WHOLE_SAMPLE_TOL * ts else f)

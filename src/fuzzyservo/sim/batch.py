@@ -31,6 +31,7 @@ from .closed_loop import (
     Plant,
     check_delay,
     profile,
+    ring_size,
     run_linear,
     run_nonlinear,
     time_grid,
@@ -80,7 +81,7 @@ def _batch_linear(
         rbuf = np.empty(n_t)
         x = np.empty(nx_max)
         xn = np.empty(nx_max)
-        ring = np.empty(min(d_max, n_t) + 2)
+        ring = np.empty(ring_size(d_max, n_t))
         cs = np.empty(cs0.shape[1])
         no_x = np.empty((0, nx_max))
         no_xop = np.zeros(nx_max)
@@ -139,7 +140,7 @@ def _batch_nonlinear(
         x = np.empty(nx)
         p = np.empty(pps.shape[1])
         work = np.empty((5, nx))
-        ring = np.empty(min(d_max, n_t) + 2)
+        ring = np.empty(ring_size(d_max, n_t))
         cs = np.empty(cs0.shape[1])
         no_x = np.empty((0, nx))
         no_noise = np.empty(0)

@@ -42,7 +42,7 @@ from ..plant.nonlinear import (
     pack,
     rk4_advance_ws,
 )
-from ..plant.zoh import discretize, split_delay
+from ..plant.zoh import check_delay, discretize, split_delay
 from .references import Reference, sample_reference
 from .result import SimResult
 
@@ -55,6 +55,7 @@ __all__ = [
     "run_linear",
     "run_loop",
     "run_nonlinear",
+    "check_delay",
     "ring_size",
     "simulate",
     "time_grid",
@@ -237,6 +238,7 @@ Plant = LinearPlant | NonlinearPlant
 DEFAULT_DELAY = 0.0
 
 
+@numba.njit(cache=True, nogil=True)
 def ring_size(d: int, n: int) -> int:
     """Length of the command ring buffer for a delay of ``d`` whole samples in a run of ``n``
     samples: d + 2, but never more than the run needs (a command delayed past the end of the
@@ -411,13 +413,6 @@ def time_grid(duration: float, ts: float) -> FloatArray:
             f"duration {duration!r} s at sample time {ts!r} s needs {n} samples; at most "
             f"{MAX_SAMPLES} are allowed (lengthen the sample time or shorten the run)")
     return np.arange(n, dtype=np.float64) * ts
-
-
-def check_delay(delay: float) -> float:
-    """Validate a transport delay [s] (finite, >= 0)."""
-    if not (math.isfinite(delay) and delay >= 0.0):
-        raise ParameterError(f"delay must be finite and >= 0 s, got {delay!r}")
-    return float(delay)
 
 
 def profile(values: ArrayLike | None, t: FloatArray, what: str) -> FloatArray:
