@@ -7,7 +7,7 @@ from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "fuzzyservo"
 
-# subpackage -> internal subpackages it may import (errors/_typing are always allowed)
+# subpackage -> internal subpackages it may import (errors/_typing/_io are always allowed)
 ALLOWED: dict[str, set[str]] = {
     "fuzzy": set(),
     "plant": set(),
@@ -21,7 +21,7 @@ ALLOWED: dict[str, set[str]] = {
     "study": {"fuzzy", "plant", "control", "sim", "paper", "registry", "analysis", "files",
               "plots"},
 }
-ALWAYS = {"errors", "_typing"}
+ALWAYS = {"errors", "_typing", "_io"}
 
 
 def _internal_targets(path: Path) -> set[str]:

@@ -12,6 +12,7 @@ from .errors import (
     EmptyFuzzySetError,
     FuzzyServoError,
     InputError,
+    OutputError,
     ParameterError,
     SimulationDivergedError,
 )
@@ -22,6 +23,7 @@ __all__ = [
     "EmptyFuzzySetError",
     "FuzzyServoError",
     "InputError",
+    "OutputError",
     "ParameterError",
     "SimulationDivergedError",
     "__version__",

@@ -12,6 +12,7 @@ __all__ = [
     "EmptyFuzzySetError",
     "FuzzyServoError",
     "InputError",
+    "OutputError",
     "ParameterError",
     "SimulationDivergedError",
 ]
@@ -27,6 +28,11 @@ class ParameterError(FuzzyServoError, ValueError):
 
 class InputError(FuzzyServoError, ValueError):
     """A signal, file or command-line value is malformed (NaN, missing column, ...)."""
+
+
+class OutputError(FuzzyServoError, OSError):
+    """A file could not be written (missing folder, permission, full disk, size limit); the
+    previous file, if any, is unchanged."""
 
 
 class EmptyFuzzySetError(FuzzyServoError, ValueError):

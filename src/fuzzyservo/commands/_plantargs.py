@@ -14,10 +14,10 @@ from typing import Any
 
 from ..errors import ParameterError
 from ..paper.published import SET_NAMES, named_set
-from ..plant import ServoParams, load_toml, with_overrides
+from ..plant import ServoParams, read_overrides_toml, with_overrides
 
-__all__ = ["DEFAULT_SET", "add_plant_arguments", "params_from_args", "params_given",
-           "parse_param", "set_name"]
+__all__ = ["DEFAULT_SET", "add_plant_arguments", "overrides_from_args", "params_from_args",
+           "params_given", "parse_param", "set_name"]
 
 #: The parameter set of every command when ``--set`` is not given.
 DEFAULT_SET = "paper"
@@ -71,15 +71,22 @@ def params_given(args: Any) -> bool:
                 or args.param_overrides)
 
 
+def overrides_from_args(args: Any) -> dict[str, float]:
+    """Every override in force, ``{"group.field": value}``: the ``--params`` file's, then each
+    ``--param`` in the order given (a later one wins). Recorded by ``tune`` and ``reproduce``
+    so that a result names every parameter that differs from its set."""
+    overrides: dict[str, Any] = {}
+    if args.param_file is not None:
+        overrides.update(read_overrides_toml(args.param_file))
+    for text in args.param_overrides:
+        name, value = parse_param(text)
+        overrides.pop(name, None)  # keep the order in which they take effect
+        overrides[name] = value
+    return overrides
+
+
 def params_from_args(args: Any) -> ServoParams:
     """Build the :class:`ServoParams` selected by the options of :func:`add_plant_arguments`."""
     params = named_set(set_name(args))
-    if args.param_file is not None:
-        params = load_toml(args.param_file, params)
-    overrides: dict[str, float] = {}
-    for text in args.param_overrides:
-        name, value = parse_param(text)
-        overrides[name] = value
-    if overrides:
-        params = with_overrides(params, overrides)
-    return params
+    overrides = overrides_from_args(args)
+    return with_overrides(params, overrides) if overrides else params

@@ -24,7 +24,7 @@ from ..errors import ParameterError
 from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gains_toml
 from ..plant import ServoParams
 from ..registry import controller_names
-from ._plantargs import add_plant_arguments, params_from_args, parse_param, set_name
+from ._plantargs import add_plant_arguments, overrides_from_args, params_from_args, set_name
 from ._runargs import add_delay_argument, add_plant_choice, delay_from_args
 
 __all__ = ["register", "run"]
@@ -80,7 +80,7 @@ def _setup(args: argparse.Namespace, params: ServoParams) -> TuningSetup:
                         ("--max-u", args.max_u)):
         if value is not None and not (math.isfinite(value) and value >= 0.0):
             raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
-    overrides = tuple(parse_param(t) for t in args.param_overrides)
+    overrides = tuple(overrides_from_args(args).items())
     return TuningSetup(
         controller=args.controller, plant=args.plant, param_set=set_name(args),
         overrides=overrides, start=args.start, step=args.step, duration=args.duration,

@@ -25,6 +25,7 @@ from .params import (
     ValveParams,
     allowed_names,
     load_toml,
+    read_overrides_toml,
     to_dict,
     with_overrides,
 )
@@ -53,6 +54,7 @@ __all__ = [
     "discretize",
     "linearize",
     "load_toml",
+    "read_overrides_toml",
     "pack",
     "rhs",
     "rk4_advance",

@@ -20,6 +20,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
+from .._io import read_text
 from ..errors import InputError, ParameterError
 
 __all__ = [
@@ -34,6 +35,7 @@ __all__ = [
     "ValveParams",
     "allowed_names",
     "load_toml",
+    "read_overrides_toml",
     "to_dict",
     "with_overrides",
 ]
@@ -321,25 +323,24 @@ def with_overrides(params: ServoParams, overrides: Mapping[str, Any]) -> ServoPa
     return replace(params, **new_groups)
 
 
-def load_toml(path: str | Path, base: ServoParams) -> ServoParams:
-    """Read ``[group] field = value`` tables from a TOML file as overrides of ``base``.
-
-    A file listing every field fully defines a set; a partial file changes only what it names.
+def read_overrides_toml(path: str | Path) -> dict[str, float]:
+    """Read ``[group] field = value`` tables from a TOML file as ``{"group.field": value}``
+    overrides, in file order (not yet applied or validated against a set; see
+    :func:`with_overrides`).
 
     Raises
     ------
     InputError
-        If the file cannot be read or is not valid TOML.
+        If the file cannot be read, is not UTF-8 text (the message names the byte offset) or is
+        not valid TOML.
     ParameterError
-        For an unknown group or field, or an invalid value.
+        For an unknown group.
     """
+    text = read_text(path, "parameter file")
     try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except OSError as exc:
-        raise InputError(f"cannot read parameter file {str(path)!r}: {exc.strerror}") from exc
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"parameter file {str(path)!r} is not valid TOML: {exc}") from exc
+        raise InputError(f"parameter file {str(path)!r} is not valid TOML: {exc}") from None
     flat: dict[str, Any] = {}
     for group, table in data.items():
         if group not in GROUPS or not isinstance(table, dict):
@@ -349,4 +350,19 @@ def load_toml(path: str | Path, base: ServoParams) -> ServoParams:
             )
         for name, value in table.items():
             flat[f"{group}.{name}"] = value
-    return with_overrides(base, flat)
+    return flat
+
+
+def load_toml(path: str | Path, base: ServoParams) -> ServoParams:
+    """Read ``[group] field = value`` tables from a TOML file as overrides of ``base``.
+
+    A file listing every field fully defines a set; a partial file changes only what it names.
+
+    Raises
+    ------
+    InputError
+        If the file cannot be read, is not UTF-8 or is not valid TOML.
+    ParameterError
+        For an unknown group or field, or an invalid value.
+    """
+    return with_overrides(base, read_overrides_toml(path))

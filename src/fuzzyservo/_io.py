@@ -1,0 +1,217 @@
+"""File I/O every layer shares: atomic writes, checked output paths, strict UTF-8 and JSON.
+
+Guarantees (docs/guarantees.md):
+
+- :func:`atomic_write` writes to a temporary file in the target's folder, flushes and fsyncs
+  it, and renames it over the target only when the block that writes it ends normally. An
+  exception, a full disk, a file-size limit, Ctrl-C or SIGTERM (the CLI turns it into an
+  exception) leaves the previous file byte-identical and removes the temporary file. Only
+  SIGKILL can leave a temporary file behind; its name (``.NAME.XXXXXXXX.tmp``) never is the
+  target's.
+- :func:`read_text` refuses bytes that are not UTF-8 with the file name and the byte offset.
+- :func:`strict_json` writes NaN and infinities as ``null``: strict JSON parsers reject the
+  ``NaN``/``Infinity`` tokens Python's ``json`` emits by default.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import math
+import os
+import tempfile
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import IO, Any, Literal, overload
+
+from .errors import InputError, OutputError
+
+__all__ = [
+    "atomic_write",
+    "check_output_path",
+    "read_text",
+    "sha256_file",
+    "strict_json",
+    "write_bytes_atomic",
+    "write_text_atomic",
+]
+
+
+def _describe(exc: OSError) -> str:
+    return exc.strerror or type(exc).__name__
+
+
+def check_output_path(path: str | Path, *, option: str = "--out",
+                      inputs: Iterable[str | Path | None] = ()) -> Path:
+    """Check, before any work, that ``path`` can be written as a file, and return it.
+
+    Raises
+    ------
+    InputError
+        ``path`` is a folder, its folder does not exist or is not writable, or it names one
+        of ``inputs`` (files the same command reads).
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise InputError(f"{option} {str(p)!r} is a folder; give a file name")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"{option} {str(p)!r}: folder {str(parent)!r} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(f"{option} {str(p)!r}: folder {str(parent)!r} is not writable")
+    if p.exists() and not os.access(p, os.W_OK) and not os.access(parent, os.W_OK):
+        raise InputError(f"{option} {str(p)!r} is not writable")
+    for src in inputs:
+        if src is None:
+            continue
+        s = Path(src)
+        try:
+            same = s.exists() and p.exists() and os.path.samefile(s, p)
+        except OSError:
+            same = False
+        if same or s.resolve() == p.resolve():
+            raise InputError(f"{option} {str(p)!r} is also an input of this command "
+                             f"({str(s)!r}); writing it would destroy the input")
+    return p
+
+
+def _new_file_mode(target: Path) -> int:
+    try:
+        return target.stat().st_mode & 0o7777
+    except OSError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask
+
+
+@overload
+def atomic_write(path: str | Path, *, binary: Literal[False] = ...) -> contextlib.AbstractContextManager[IO[str]]: ...  # noqa: E501
+
+
+@overload
+def atomic_write(path: str | Path, *, binary: Literal[True]) -> contextlib.AbstractContextManager[IO[bytes]]: ...  # noqa: E501
+
+
+def atomic_write(path: str | Path, *, binary: bool = False) -> contextlib.AbstractContextManager[IO[Any]]:  # noqa: E501
+    """Open ``path`` for writing so that it appears complete or not at all.
+
+    Text mode is UTF-8 with ``\\n`` line ends. Use as ``with atomic_write(p) as fh: ...``;
+    the target is replaced when the block ends without an exception.
+
+    Raises
+    ------
+    OutputError
+        The file cannot be written (missing folder, permission, full disk, size limit); the
+        previous file, if any, is left as it was.
+    """
+    return _atomic(Path(path), binary)
+
+
+@contextlib.contextmanager
+def _atomic(target: Path, binary: bool) -> Iterator[IO[Any]]:
+    folder = target.parent if str(target.parent) else Path(".")
+    try:
+        fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{target.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise OutputError(f"cannot write {str(target)!r}: {_describe(exc)}") from None
+    tmp = Path(tmp_name)
+    done = False
+    try:
+        fh: IO[Any]
+        if binary:
+            fh = os.fdopen(fd, "wb")
+        else:
+            fh = os.fdopen(fd, "w", encoding="utf-8", newline="")
+        with fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, _new_file_mode(target))
+        os.replace(tmp, target)
+        done = True
+        with contextlib.suppress(OSError):  # make the rename itself durable
+            dfd = os.open(folder, os.O_RDONLY)
+            try:
+                os.fsync(dfd)
+            finally:
+                os.close(dfd)
+    except OSError as exc:
+        raise OutputError(f"cannot write {str(target)!r}: {_describe(exc)}; "
+                          f"the previous file, if any, is unchanged") from None
+    finally:
+        if not done:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+
+
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically and return the path."""
+    with atomic_write(path) as fh:
+        fh.write(text)
+    return Path(path)
+
+
+def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically and return the path."""
+    with atomic_write(path, binary=True) as fh:
+        fh.write(data)
+    return Path(path)
+
+
+_BOMS = ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"),
+         (b"\xff\xfe", "UTF-16"), (b"\xfe\xff", "UTF-16"))
+
+
+def read_text(path: str | Path, what: str = "file") -> str:
+    """Read ``path`` as UTF-8 text (a UTF-8 byte-order mark is skipped).
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, or holds bytes that are not UTF-8 (the message names the file
+        and the offset of the first bad byte) or NUL characters.
+    """
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read {what} {str(p)!r}: {_describe(exc)}") from None
+    for bom, name in _BOMS:
+        if data.startswith(bom):
+            raise InputError(f"{what} {str(p)!r} is {name} text (byte-order mark at byte 0); "
+                             f"save it as UTF-8")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{what} {str(p)!r} is not UTF-8 text: byte 0x{data[exc.start]:02x} "
+                         f"at offset {exc.start}") from None
+    nul = text.find("\0")
+    if nul >= 0:
+        raise InputError(f"{what} {str(p)!r} is not text: NUL character at offset "
+                         f"{len(text[:nul].encode('utf-8'))}")
+    return text
+
+
+def _finite(obj: Any) -> Any:
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    return obj
+
+
+def strict_json(obj: Any, *, indent: int | None = None, sort_keys: bool = False) -> str:
+    """``obj`` as strict JSON (RFC 8259): NaN and infinities become ``null``."""
+    return json.dumps(_finite(obj), indent=indent, sort_keys=sort_keys, allow_nan=False)
+
+
+def sha256_file(path: str | Path) -> str:
+    """SHA-256 of a file's bytes, as hex."""
+    h = hashlib.sha256()
+    with Path(path).open("rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
