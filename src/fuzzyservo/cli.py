@@ -6,6 +6,13 @@ Errors a user can cause (:class:`~fuzzyservo.errors.FuzzyServoError`) are printe
 and give exit status 2, without a traceback. A reader that closes the pipe early
 (``fuzzyservo linearize | head -1``) ends the command quietly with status 141, the status of a
 process ended by SIGPIPE, as other command-line tools do.
+
+Interruptions end on one line too: Ctrl-C (SIGINT) with status 130 and SIGTERM with 143
+(128 + the signal), at any point including start-up; every file being written at that moment
+is left as it was (``fuzzyservo._io.atomic_write``). numpy floating-point warnings are not
+printed: a run that goes non-finite is reported by the simulator as an error of its own. An
+error of ours raised inside a library that wraps it (scipy's optimiser, the integrator) is
+found in the exception's chain and printed as itself.
 """
 
 from __future__ import annotations
@@ -13,8 +20,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterator, Sequence
+from types import FrameType
 
 from . import __version__
 from .errors import FuzzyServoError
@@ -32,6 +42,40 @@ COMMANDS: tuple[str, ...] = (
 
 #: Exit status after the reader of standard output went away (128 + SIGPIPE).
 EXIT_PIPE = 141
+
+#: Exit status after Ctrl-C (128 + SIGINT).
+EXIT_INTERRUPT = 130
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised as an exception so that writes in progress are rolled back."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _on_sigterm(signum: int, frame: FrameType | None) -> None:
+    raise Terminated(signum)
+
+
+def _chain(exc: BaseException) -> Iterator[BaseException]:
+    seen: set[int] = set()
+    cur: BaseException | None = exc
+    while cur is not None and id(cur) not in seen:
+        seen.add(id(cur))
+        yield cur
+        cur = cur.__cause__ or cur.__context__
+
+
+def _ours(exc: BaseException) -> FuzzyServoError | None:
+    """The first error of ours in ``exc``'s chain (scipy wraps errors raised in callbacks)."""
+    return next((e for e in _chain(exc) if isinstance(e, FuzzyServoError)), None)
+
+
+def _error(message: str) -> int:
+    print(f"fuzzyservo: error: {' '.join(message.split())}", file=sys.stderr)
+    return 2
 
 
 class _Parser(argparse.ArgumentParser):
@@ -56,8 +100,34 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (default: ``sys.argv[1:]``) and return the exit status."""
-    parser = build_parser()
+    previous = None
     try:
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread: leave SIGTERM alone
+        pass
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            import numpy as np
+
+            with np.errstate(all="ignore"):
+                return _run(argv)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM at any point, start-up included
+        if isinstance(exc, Terminated):
+            print("fuzzyservo: terminated; files being written were left as they were",
+                  file=sys.stderr)
+            return 128 + exc.signum
+        print("fuzzyservo: interrupted; files being written were left as they were",
+              file=sys.stderr)
+        return EXIT_INTERRUPT
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    try:
+        parser = build_parser()
         args = parser.parse_args(argv)
         status: int = args.handler(args)
         sys.stdout.flush()
@@ -70,10 +140,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # argparse: usage errors (2, one line), --help and --version (0)
         return exc.code if isinstance(exc.code, int) else 2
     except FuzzyServoError as exc:
-        message = " ".join(str(exc).split())
-        print(f"fuzzyservo: error: {message}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("fuzzyservo: interrupted; results already written are kept", file=sys.stderr)
-        return 130
+        return _error(str(exc))
+    except MemoryError:
+        return _error("out of memory; shorten the run (--duration) or coarsen it (--ts)")
+    except Exception as exc:  # a library wrapped one of our errors
+        ours = _ours(exc)
+        if ours is None:
+            raise
+        return _error(str(ours))
     return status

@@ -12,6 +12,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from .._io import check_output_path
 from ..errors import InputError
 from ..files import read_run_csv
 from ..plots.runs import FIGURE_FORMATS, runs_figure, save_figure
@@ -49,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out.suffix.lower() not in FIGURE_FORMATS:
         raise InputError(f"--out {str(args.out)!r}: the file name must end in "
                          f"{' or '.join(FIGURE_FORMATS)}")
+    check_output_path(args.out, option="--out", inputs=args.csv)
     labels = args.label if args.label is not None else [p.stem for p in args.csv]
     if len(labels) != len(args.csv):
         raise InputError(f"{len(labels)} --label for {len(args.csv)} run CSV(s); give one "

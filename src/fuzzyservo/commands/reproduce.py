@@ -19,7 +19,7 @@ from typing import Any
 from tqdm import tqdm
 
 from .. import __version__
-from ..errors import InputError, ParameterError
+from ..errors import InputError, OutputError, ParameterError
 from ..study.paper_study import StudyConfig
 from ..study.runner import PLANTS, reproduce
 from ._plantargs import add_plant_arguments, params_from_args, set_name
@@ -80,17 +80,21 @@ def run(args: argparse.Namespace) -> int:
     meta = {
         "fuzzyservo": __version__,
         "generated": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
-        "parameter set": set_name(args) + (" with " + ", ".join(args.param_overrides)
-                                           if args.param_overrides else ""),
         "gains": "re-tuned in this run" if args.retune else
                  str(args.gains_dir or "committed tuned gains (fuzzyservo/data/gains)"),
         "plants": ", ".join(plants),
     }
+
+    def warn(message: str) -> None:
+        tqdm.write(f"fuzzyservo: warning: {message}", file=sys.stderr)
+
     t0 = time.perf_counter()
     try:
         paths = reproduce(args.out, cfg, gains_dir=args.gains_dir, retune_gains=args.retune,
                           force=args.force, plants=plants, version=__version__,
-                          progress=progress, meta=meta)
+                          progress=progress, meta=meta, warn=warn)
+    except OutputError:
+        raise
     except OSError as exc:
         raise InputError(f"cannot write into {str(args.out)!r}: "
                          f"{exc.strerror or exc}") from exc

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from .._io import check_output_path
 from ..analysis.autotune import TunedGains
 from ..errors import InputError, ParameterError
 from ..paper import named_set
@@ -115,6 +116,13 @@ def _check_outputs(args: argparse.Namespace) -> None:
     if args.open_loop and args.metrics:
         raise InputError("--metrics needs a closed loop (step metrics are measured against "
                          "the reference); plot or write the open-loop run instead")
+    inputs = [args.param_file]
+    if args.gains is not None and Path(args.gains).is_file():
+        inputs.append(Path(args.gains))
+    if args.out not in (None, "-"):
+        check_output_path(args.out, option="--out", inputs=inputs)
+    if args.plot is not None:
+        check_output_path(args.plot, option="--plot", inputs=inputs)
 
 
 def _write(result: Any, out: str | None) -> None:
@@ -123,10 +131,7 @@ def _write(result: Any, out: str | None) -> None:
     if out == "-":
         result.to_csv(sys.stdout)
         return
-    try:
-        result.to_csv(Path(out))
-    except OSError as exc:
-        raise InputError(f"cannot write {out!r}: {exc.strerror or exc}") from exc
+    result.to_csv(Path(out))  # atomic: a failed write leaves the previous file as it was
 
 
 #: Defaults of the run options when neither the command line nor a gains file sets them.

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._io import atomic_write
 from ..analysis.autotune import Checkpoint
 from ..errors import InputError
 
@@ -29,12 +30,9 @@ def save_checkpoint(path: str | Path, ckpt: Checkpoint) -> Path:
                          "objective": ckpt.objective, "seed": ckpt.seed, "stage": ckpt.stage,
                          "generation": ckpt.generation,
                          "done": {k: list(v) for k, v in ckpt.done.items()}})
-    try:
-        with path.open("wb") as fh:
-            np.savez(fh, population=np.asarray(ckpt.population, dtype=np.float64),
-                     header=np.array(header))
-    except OSError as exc:
-        raise InputError(f"cannot write checkpoint {str(path)!r}: {exc.strerror}") from exc
+    with atomic_write(path, binary=True) as fh:
+        np.savez(fh, population=np.asarray(ckpt.population, dtype=np.float64),
+                 header=np.array(header))
     return path
 
 

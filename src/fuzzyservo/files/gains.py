@@ -30,6 +30,7 @@ from typing import Any
 
 import tomli_w
 
+from .._io import write_text_atomic
 from ..analysis.autotune import StageRecord, TunedGains, TuningSetup
 from ..analysis.tuning import GainBounds, TuningConstraints
 from ..control.fuzzy_pi import KernelSystem
@@ -57,8 +58,9 @@ def write_gains_toml(path: str | Path, tuned: TunedGains) -> Path:
 
     Raises
     ------
-    InputError
-        If the file cannot be written.
+    OutputError
+        If the file cannot be written; it is written atomically, so the previous file, if
+        any, is then left as it was.
     """
     s = tuned.setup
     b = s.search_bounds()
@@ -85,12 +87,7 @@ def write_gains_toml(path: str | Path, tuned: TunedGains) -> Path:
                     "objective_value": st.objective_value, "feasible": st.feasible,
                     "n_evaluations": st.n_evaluations} for st in tuned.stages],
     }
-    path = Path(path)
-    try:
-        path.write_text(tomli_w.dumps(doc), encoding="utf-8")
-    except OSError as exc:
-        raise InputError(f"cannot write {str(path)!r}: {exc.strerror}") from exc
-    return path
+    return write_text_atomic(path, tomli_w.dumps(doc))
 
 
 class _Reader:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from .._io import atomic_write
 from .._typing import FloatArray
 from ..errors import ParameterError
 from ..fuzzy import LinguisticVariable, MamdaniSystem
@@ -166,6 +167,7 @@ def fig3(du: MamdaniSystem, alpha: MamdaniSystem, out_dir: Path, n: int = 81,
     for name, fig in jobs:
         for fmt in formats:
             path = (out_dir / name).with_suffix(f".{fmt}")
-            fig.savefig(path, dpi=120)
+            with atomic_write(path, binary=True) as fh:
+                fig.savefig(fh, format=fmt, dpi=120)
             written.append(path)
     return written

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from .._io import atomic_write
 from .._typing import FloatArray
 from ..analysis.step_metrics import Run, step_metrics
 from ..errors import InputError
@@ -158,14 +159,14 @@ def save_figure(fig: Figure, path: str | Path) -> Path:
     Raises
     ------
     InputError
-        Another suffix, or the file cannot be written.
+        Another suffix.
+    OutputError
+        The file cannot be written (the previous file, if any, is left as it was).
     """
     path = Path(path)
     if path.suffix.lower() not in FIGURE_FORMATS:
         raise InputError(f"figure {str(path)!r}: the file name must end in "
                          f"{' or '.join(FIGURE_FORMATS)}")
-    try:
-        fig.savefig(path, format=path.suffix.lower()[1:])
-    except OSError as exc:
-        raise InputError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from exc
+    with atomic_write(path, binary=True) as fh:
+        fig.savefig(fh, format=path.suffix.lower()[1:])
     return path

@@ -19,6 +19,7 @@ import numpy as np  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
+from .._io import atomic_write  # noqa: E402
 from .._typing import FloatArray  # noqa: E402
 
 __all__ = [
@@ -150,7 +151,10 @@ def save(fig: Figure, stem: Path) -> list[Path]:
     stem = Path(stem)
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
-    for p in paths:
-        fig.savefig(p)
-    plt.close(fig)
+    try:
+        for p in paths:
+            with atomic_write(p, binary=True) as fh:
+                fig.savefig(fh, format=p.suffix[1:])
+    finally:
+        plt.close(fig)
     return paths

@@ -4,12 +4,12 @@ the offline report.html. Nothing is simulated here; everything comes from the re
 from __future__ import annotations
 
 import csv
-import json
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from .._io import atomic_write, strict_json, write_text_atomic
 from ..paper.departures import DEPARTURES
 from ..plant import linearize, to_dict
 from ..plots.study_figures import (
@@ -39,13 +39,15 @@ def _curve(study: PlantStudy, key: str, *, label: str | None = None,
     return Curve(key, lab, r.t, r.y, r.u, r.alpha, r.r, linestyle)
 
 
-def _figures(study: PlantStudy, cfg: StudyConfig, out: Path) -> list[Figure]:
+def _figures(study: PlantStudy, cfg: StudyConfig, out: Path,
+             written: list[Path]) -> list[Figure]:
     p = study.plant
     y0 = float(study.runs["stfpi"].y[0])
     figs: list[Figure] = []
 
     def put(fig: Any, stem: str, caption: str) -> None:
         paths = save(fig, out / stem)
+        written.extend(paths)
         figs.append(Figure(paths[0], caption))
 
     fig4_keys = ("pid_paper_1", "pid_paper_2", "pid_tuned", "pid2_tuned", "stfpi", "stfpi_10")
@@ -96,29 +98,43 @@ def _fmt_gains(g: Mapping[str, float], *, exact: bool = False) -> str:
 
 def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                   fig3: Sequence[Path], tuning_notes: Mapping[str, str],
-                  meta: Mapping[str, str]) -> dict[str, Path]:
-    """Write every output of the study into ``out`` and return the main paths."""
+                  meta: Mapping[str, str], *, written: list[Path] | None = None,
+                  notices: Sequence[str] = ()) -> dict[str, Path]:
+    """Write every output of the study into ``out`` and return the main paths.
+
+    Every file is written atomically; ``written`` (if given) receives each path, the report
+    last. ``notices`` are shown at the top of the report (the overrides in force, ...).
+    """
+    if written is None:
+        written = []
     out.mkdir(parents=True, exist_ok=True)
     traces = out / "traces"
     traces.mkdir(exist_ok=True)
+
+    def trace(run: Any, name: str) -> None:
+        run.to_csv(traces / name)
+        written.append(traces / name)
+
     for s in studies:
         for key, run in s.runs.items():
-            run.to_csv(traces / f"{s.plant}_{key}.csv")
-        s.delayed.to_csv(traces / f"{s.plant}_stfpi_delay.csv")
+            trace(run, f"{s.plant}_{key}.csv")
+        trace(s.delayed, f"{s.plant}_stfpi_delay.csv")
         for i, run in enumerate(s.variant_runs.values()):
-            run.to_csv(traces / f"{s.plant}_stfpi_variant{i}.csv")
-        with (traces / f"{s.plant}_delay_sweep.csv").open("w", newline="") as fh:
-            w = csv.writer(fh)
+            trace(run, f"{s.plant}_stfpi_variant{i}.csv")
+        sweep_csv = traces / f"{s.plant}_delay_sweep.csv"
+        with atomic_write(sweep_csv) as fh:
+            w = csv.writer(fh, lineterminator="\n")
             w.writerow(["controller", "delay", "overshoot", "settling_time", "iae", "u_max",
                         "diverged"])
             for key, sw in s.sweep.items():
                 for j, dly in enumerate(s.delays):
                     w.writerow([key, repr(float(dly))] + [repr(float(sw[c][j])) for c in
                                ("overshoot", "settling_time", "iae", "u_max", "diverged")])
+        written.append(sweep_csv)
 
     metrics_csv = out / "metrics.csv"
-    with metrics_csv.open("w", newline="") as fh:
-        w = csv.writer(fh)
+    with atomic_write(metrics_csv) as fh:
+        w = csv.writer(fh, lineterminator="\n")
         w.writerow(["plant", "controller", "label", "gains"]
                    + [f"{n} [{u}]" for n, u in METRIC_COLUMNS])
         for s in studies:
@@ -126,12 +142,16 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                 m = s.metrics[c.key]
                 w.writerow([s.plant, c.key, c.label, _fmt_gains(c.gains, exact=True)]
                            + [repr(float(m[n])) for n, _ in METRIC_COLUMNS])
+    written.append(metrics_csv)
 
     claims = [c.as_dict() for s in studies for c in s.claims]
-    claims_json = out / "claims.json"
-    claims_json.write_text(json.dumps(claims, indent=2) + "\n", encoding="utf-8")
+    claims_json = write_text_atomic(out / "claims.json", strict_json(claims, indent=2) + "\n")
+    written.append(claims_json)
+    written.extend(fig3)
 
     sections: list[Section] = []
+    if notices:
+        sections.append(Section("Conditions of this run", items=list(notices)))
     sections.append(Section(
         "Claims of the paper, tested",
         paragraphs=["Each verdict is computed from the simulations below at run time. "
@@ -158,7 +178,7 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                     Table(["controller", "settles at every delay up to [ms]",
                            "fails (no 2 % settling in the run) at [ms]"], margin_rows,
                           caption="Delay sweep, gains fixed")],
-            figures=_figures(s, cfg, out)))
+            figures=_figures(s, cfg, out, written)))
     sections.append(Section(
         "Fig. 3: membership functions and control surfaces",
         figures=[Figure(p, p.stem.replace("_", " ")) for p in fig3 if p.suffix == ".png"]))
@@ -184,5 +204,6 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
         [[d.topic, d.paper, d.ours, d.reason] for d in DEPARTURES])]))
     report = write_html(out / "report.html",
                         "fuzzyservo: reproduction of Aly et al. (2012)", sections, meta)
+    written.append(report)
     return {"report": report, "metrics": metrics_csv, "claims": claims_json}
 

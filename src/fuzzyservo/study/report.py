@@ -13,6 +13,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .._io import write_text_atomic
+
 __all__ = ["Figure", "Section", "Table", "render_html", "write_html"]
 
 
@@ -126,8 +128,4 @@ def render_html(title: str, sections: Sequence[Section],
 def write_html(path: Path, title: str, sections: Sequence[Section],
                meta: Mapping[str, str] | None = None) -> Path:
     """Write :func:`render_html` to ``path`` atomically and return the path."""
-    path = Path(path)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(render_html(title, sections, meta), encoding="utf-8")
-    tmp.replace(path)
-    return path
+    return write_text_atomic(path, render_html(title, sections, meta))

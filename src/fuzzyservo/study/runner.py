@@ -1,34 +1,57 @@
 """Run the whole reproduction: load (or re-tune) gains, simulate each plant, write the outputs.
 
-Each plant's results are cached in ``OUT/.cache`` under a key made of everything that
-determines them (parameters, gains, settings, fuzzyservo version), so a second run reuses them
-unless ``force`` is set, and an interrupted run resumes from the plants already finished.
+Each plant's results are cached in ``OUT/.cache`` (data only: ``fuzzyservo.study.cache``)
+under a key made of everything that determines them (parameters, gains, settings, the
+package's source and version), so a second run reuses them unless ``force`` is set, and an
+interrupted run resumes from the plants already finished. An entry that cannot be used is
+reported on one line and recomputed.
+
+The output folder is complete or says it is not (docs/guarantees.md). ``OUT/manifest.json``
+is written last and lists the package version, the parameter set with every override in force,
+the gains files with their SHA-256, the settings, and the SHA-256 of each output. Before the
+first output is touched, the report is replaced by a page saying the folder is incomplete and
+the manifest is marked ``"complete": false``; a run interrupted after that point leaves a
+folder that :func:`folder_status`, the next ``reproduce`` and the report all call incomplete.
+Outputs that the previous manifest listed and this run does not write are removed, so the
+folder never mixes two runs.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import datetime as _dt
 import hashlib
 import json
-import pickle
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from .._io import sha256_file, strict_json, write_text_atomic
 from ..analysis.autotune import TunedGains, TuningSetup, stage_as_tuned, tune_controller
 from ..analysis.tuning import TuningConstraints
 from ..errors import InputError
 from ..files import read_gains_toml, write_gains_toml
-from ..paper import alpha_system, du_system
-from ..plant import to_dict
+from ..paper import alpha_system, du_system, named_set
+from ..plant import ServoParams, to_dict
 from ..plots.figures import fig3
 from ..registry import controller_kind
+from .cache import CacheEntryError, load_study, save_study
 from .claims import NO_OVERSHOOT_PCT
 from .outputs import write_outputs
 from .paper_study import TUNED_DESIGNS, PlantStudy, StudyConfig, run_plant_study
+from .report import Section, write_html
 
-__all__ = ["GAIN_FILES", "PLANTS", "default_gains_dir", "load_tuned", "reproduce", "retune"]
+__all__ = ["GAIN_FILES", "MANIFEST", "PLANTS", "CacheWarning", "default_gains_dir",
+           "folder_status", "load_tuned", "overrides_in_force", "reproduce", "retune"]
+
+#: The output folder's manifest, written last.
+MANIFEST = "manifest.json"
+
+
+class CacheWarning(UserWarning):
+    """A cache entry was ignored (corrupt, truncated, foreign or stale) and recomputed."""
 
 #: Gain files of one plant, ``{plant}-{name}.toml``: the names :data:`TUNED_DESIGNS` uses.
 GAIN_FILES: tuple[str, ...] = ("pid", "pid2", "fpi", "stfpi", "fpi-os0", "stfpi-os0")
@@ -52,6 +75,10 @@ def load_tuned(plant: str, gains_dir: Path) -> dict[str, TunedGains]:
                              f"{plant}-{{{','.join(GAIN_FILES)}}}.toml")
         out[name] = read_gains_toml(path)
     return out
+
+
+def _gain_paths(plant: str, gains_dir: Path) -> list[Path]:
+    return [Path(gains_dir) / f"{plant}-{name}.toml" for name in GAIN_FILES]
 
 
 def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
@@ -97,15 +124,24 @@ def _code_digest() -> str:
     return h.hexdigest()
 
 
+def _settings(cfg: StudyConfig) -> dict[str, Any]:
+    return {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg) if f.name != "params"}
+
+
 def _cache_key(plant: str, cfg: StudyConfig, gains: Mapping[str, str], version: str) -> str:
     blob = json.dumps({
         "plant": plant, "version": version, "code": _code_digest(),
-        "params": to_dict(cfg.params),
-        "config": {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)
-                   if f.name != "params"},
-        "gains": gains,
+        "params": to_dict(cfg.params), "config": _settings(cfg), "gains": gains,
     }, sort_keys=True, default=repr)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def overrides_in_force(params: ServoParams, set_name: str) -> dict[str, float]:
+    """Every parameter of ``params`` that differs from the named set, ``{"group.field": v}``
+    (whatever set it: ``--params`` file, ``--param``, or code)."""
+    base = to_dict(named_set(set_name))
+    return {f"{g}.{k}": v for g, d in to_dict(params).items() for k, v in d.items()
+            if v != base[g][k]}
 
 
 def _notes(plant: str, tuned: Mapping[str, TunedGains]) -> dict[str, str]:
@@ -120,47 +156,183 @@ def _notes(plant: str, tuned: Mapping[str, TunedGains]) -> dict[str, str]:
     return notes
 
 
+def _read_manifest(out: Path) -> dict[str, Any] | None:
+    try:
+        doc = json.loads((out / MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def _listed(doc: Mapping[str, Any] | None) -> list[str]:
+    outputs = doc.get("outputs") if doc else None
+    if not isinstance(outputs, dict):
+        return []
+    return [str(k) for k in outputs]
+
+
+def folder_status(out: str | Path) -> tuple[str, list[str]]:
+    """Whether ``out`` holds a complete ``reproduce`` output set.
+
+    Returns ``(status, problems)``: status ``"complete"`` (the manifest says so and every
+    output it lists has its recorded SHA-256), ``"incomplete"`` (``problems`` says why) or
+    ``"empty"`` (no manifest and no report).
+    """
+    out = Path(out)
+    doc = _read_manifest(out)
+    if doc is None:
+        if (out / MANIFEST).exists():
+            return "incomplete", [f"{MANIFEST} is unreadable"]
+        if (out / "report.html").exists():
+            return "incomplete", [f"no {MANIFEST}: the run that wrote this folder did not "
+                                  f"finish"]
+        return "empty", []
+    if doc.get("complete") is not True:
+        return "incomplete", [f"{MANIFEST} says a run started on {doc.get('started', '?')} "
+                              f"did not finish"]
+    problems = []
+    outputs = doc.get("outputs")
+    for rel, digest in (outputs.items() if isinstance(outputs, dict) else ()):
+        p = out / rel
+        if not p.is_file():
+            problems.append(f"{rel} is missing")
+        elif sha256_file(p) != digest:
+            problems.append(f"{rel} differs from the manifest")
+    return ("complete" if not problems else "incomplete"), problems
+
+
+def _clean_temporaries(out: Path) -> None:
+    """Remove temporary files a killed run left (``.NAME.XXXXXXXX.tmp``, never a target)."""
+    for folder in (out, out / "traces", out / "gains", out / ".cache"):
+        if folder.is_dir():
+            for p in folder.glob(".*.tmp"):
+                p.unlink(missing_ok=True)
+
+
+def _mark_incomplete(out: Path, previous: Sequence[str], started: str, version: str) -> None:
+    """Say, before the first output is touched, that the folder is being rewritten: the
+    report first (a reader sees it), then the manifest (the next run sees it)."""
+    write_html(out / "report.html", "fuzzyservo: reproduction INCOMPLETE", [Section(
+        "This folder is incomplete",
+        paragraphs=[f"A fuzzyservo reproduce run started on {started} was writing this "
+                    "folder and has not finished (interrupted, or still running). Its files "
+                    "may mix two runs: do not use them. Run fuzzyservo reproduce again "
+                    "with the same options to complete it."])])
+    write_text_atomic(out / MANIFEST, strict_json({
+        "fuzzyservo": version, "complete": False, "started": started,
+        # every output of the previous run: the next run removes those it does not rewrite
+        "outputs": {rel: None for rel in previous}}, indent=2) + "\n")
+
+
 def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
               retune_gains: bool = False, force: bool = False,
               plants: Sequence[str] = PLANTS, version: str = "",
               progress: Callable[[str], None] | None = None,
-              meta: Mapping[str, str] | None = None) -> dict[str, Path]:
-    """Reproduce the paper's study into ``out`` and return the main output paths."""
+              meta: Mapping[str, str] | None = None,
+              warn: Callable[[str], None] | None = None) -> dict[str, Path]:
+    """Reproduce the paper's study into ``out`` and return the main output paths.
+
+    ``warn(message)`` receives one-line warnings (a cache entry ignored, a folder left
+    incomplete by an earlier run); by default they are issued as :class:`CacheWarning`.
+    """
+    def say(message: str) -> None:
+        if warn is not None:
+            warn(message)
+        else:
+            warnings.warn(message, CacheWarning, stacklevel=3)
+
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(f"--out {str(out)!r} exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
+    _clean_temporaries(out)
+    status, problems = folder_status(out)
+    if status == "incomplete":
+        say(f"{str(out)!r} is incomplete ({problems[0]}); writing it again")
+    previous = _listed(_read_manifest(out))
+    started = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+    marked = False
+
+    def begin_writing() -> None:
+        nonlocal marked
+        if not marked:
+            _mark_incomplete(out, previous, started, version)
+            marked = True
+
     cache = out / ".cache"
     cache.mkdir(exist_ok=True)
     studies: list[PlantStudy] = []
     notes: dict[str, str] = {}
+    gains_used: dict[str, Path] = {}
     for plant in plants:
         if retune_gains:
+            begin_writing()
             tuned = retune(plant, cfg.params, cfg.set_name, out / "gains", progress=progress)
+            gains_used.update({str(p.relative_to(out)): p
+                               for p in _gain_paths(plant, out / "gains")})
         else:
-            tuned = load_tuned(plant, gains_dir or default_gains_dir())
+            src = gains_dir or default_gains_dir()
+            tuned = load_tuned(plant, src)
+            gains_used.update({str(p): p for p in _gain_paths(plant, src)})
         notes.update(_notes(plant, tuned))
         designs = {name: (t.controller, dict(t.gains)) for name, t in tuned.items()}
         key = _cache_key(plant, cfg, {n: repr(t) for n, t in tuned.items()}, version)
-        path = cache / f"{plant}-{key}.pkl"
+        path = cache / f"{plant}-{key}.npz"
+        study: PlantStudy | None = None
         if path.is_file() and not force:
-            with path.open("rb") as fh:
-                study: PlantStudy = pickle.load(fh)
-            if progress is not None:
-                progress(f"{plant}: reused cached results ({path.name})")
-        else:
+            try:
+                study = load_study(path, key=key, version=version)
+            except CacheEntryError as exc:
+                say(f"ignoring cache entry {str(path)!r}: "
+                    f"{' '.join(str(exc).split())[:160]}; recomputing")
+            else:
+                if progress is not None:
+                    progress(f"{plant}: reused cached results ({path.name})")
+        if study is None:
             limit = tuned[TUNED_DESIGNS["stfpi"][0]].setup.constraints.max_overshoot
             study = run_plant_study(plant, cfg, designs, tick=progress,
                                     stfpi_overshoot_limit=limit)
-            tmp = path.with_suffix(".tmp")
-            with tmp.open("wb") as fh:
-                pickle.dump(study, fh, protocol=pickle.HIGHEST_PROTOCOL)
-            tmp.replace(path)
+            save_study(path, study, key=key, version=version)
         studies.append(study)
+
+    overrides = overrides_in_force(cfg.params, cfg.set_name)
+    shown = dict(meta or {})
+    shown["parameter set"] = cfg.set_name + (
+        " with " + ", ".join(f"{k} = {v!r}" for k, v in overrides.items())
+        if overrides else " (no override)")
+    base = {f"{g}.{k}": v for g, d in to_dict(named_set(cfg.set_name)).items()
+            for k, v in d.items()}
+    notices = [f"Parameter set '{cfg.set_name}'" + (
+        ", with these overrides in force (SI units): "
+        + "; ".join(f"{k} = {v!r} (the set has {base[k]!r})" for k, v in overrides.items())
+        if overrides else ", with no override.")]
+
+    begin_writing()
+    written: list[Path] = []
     fig3_paths = fig3(du_system(), alpha_system(), out, formats=("png", "svg"))
     if progress is not None:
         progress("figure 3")
-    paths = write_outputs(out, cfg, studies, fig3_paths, notes, meta or {})
+    paths = write_outputs(out, cfg, studies, fig3_paths, notes, shown, written=written,
+                          notices=notices)
     if progress is not None:
         progress("figures, tables and report")
+    rels = [p.relative_to(out).as_posix() for p in written]
+    if retune_gains:
+        rels.extend(rel for rel in gains_used if rel not in rels)
+    for rel in previous:  # outputs of the previous run that this one did not rewrite
+        if rel not in rels and rel != MANIFEST:
+            p = out / rel
+            if p.is_file() and p.resolve().is_relative_to(out.resolve()):
+                p.unlink()
+    manifest = {
+        "fuzzyservo": version, "complete": True, "started": started,
+        "finished": _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M:%S UTC"),
+        "parameter_set": cfg.set_name, "overrides": overrides,
+        "parameters": to_dict(cfg.params), "plants": list(plants),
+        "settings": _settings(cfg),
+        "gains": {name: {"sha256": sha256_file(p)} for name, p in gains_used.items()},
+        "outputs": {rel: sha256_file(out / rel) for rel in rels},
+    }
+    paths["manifest"] = write_text_atomic(out / MANIFEST, strict_json(manifest, indent=2)
+                                          + "\n")
     return paths
