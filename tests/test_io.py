@@ -1,0 +1,181 @@
+"""fuzzyservo._io: atomic writes, checked output paths, strict UTF-8 and JSON
+(docs/guarantees.md)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fuzzyservo._io import (
+    atomic_write,
+    check_output_path,
+    read_text,
+    strict_json,
+    write_text_atomic,
+)
+from fuzzyservo.errors import InputError, OutputError
+from fuzzyservo.sim.result import write_csv
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "fuzzyservo"
+
+
+def _visible(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir())
+
+
+def test_an_exception_inside_the_block_leaves_the_old_file_and_no_temporary(
+        tmp_path: Path) -> None:
+    target = tmp_path / "keep.csv"
+    target.write_bytes(b"old contents\n")
+    with pytest.raises(KeyError), atomic_write(target) as fh:
+        fh.write("new, half written")
+        raise KeyError("boom")
+    assert target.read_bytes() == b"old contents\n"
+    assert _visible(tmp_path) == ["keep.csv"]  # the temporary file is gone
+
+
+def test_a_keyboard_interrupt_inside_the_block_leaves_the_old_file(tmp_path: Path) -> None:
+    target = tmp_path / "keep.toml"
+    target.write_bytes(b"a = 1\n")
+    with pytest.raises(KeyboardInterrupt), atomic_write(target) as fh:
+        fh.write("a = 2\n")
+        raise KeyboardInterrupt
+    assert target.read_bytes() == b"a = 1\n"
+    assert _visible(tmp_path) == ["keep.toml"]
+
+
+def test_the_file_size_limit_is_an_output_error_and_the_old_file_survives(
+        tmp_path: Path) -> None:
+    """RLIMIT_FSIZE set in a child process: the write fails half-way (EFBIG)."""
+    target = tmp_path / "keep.bin"
+    old = os.urandom(300_000)
+    target.write_bytes(old)
+    code = (
+        "import resource, sys\n"
+        "resource.setrlimit(resource.RLIMIT_FSIZE, (50_000, 50_000))\n"
+        "from fuzzyservo._io import write_bytes_atomic\n"
+        "from fuzzyservo.errors import OutputError\n"
+        "try:\n"
+        f"    write_bytes_atomic({str(target)!r}, b'x' * 200_000)\n"
+        "except OutputError as exc:\n"
+        "    print(exc); sys.exit(3)\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=False)
+    assert res.returncode == 3, res.stderr
+    assert "File too large" in res.stdout and "keep.bin" in res.stdout
+    assert target.read_bytes() == old
+    assert _visible(tmp_path) == ["keep.bin"]
+
+
+def test_a_missing_folder_is_an_output_error(tmp_path: Path) -> None:
+    with pytest.raises(OutputError, match="nodir"):
+        write_text_atomic(tmp_path / "nodir" / "x.txt", "x")
+
+
+def test_new_files_get_the_umask_mode_and_old_files_keep_theirs(tmp_path: Path) -> None:
+    mask = os.umask(0o022)
+    try:
+        new = write_text_atomic(tmp_path / "new.txt", "x")
+        assert new.stat().st_mode & 0o777 == 0o644  # not mkstemp's 0600
+        old = tmp_path / "old.txt"
+        old.write_text("x")
+        old.chmod(0o640)
+        write_text_atomic(old, "y")
+        assert old.stat().st_mode & 0o777 == 0o640 and old.read_text() == "y"
+    finally:
+        os.umask(mask)
+
+
+def test_output_paths_are_checked_before_any_work(tmp_path: Path) -> None:
+    (tmp_path / "adir").mkdir()
+    with pytest.raises(InputError, match="is a folder"):
+        check_output_path(tmp_path / "adir", option="--plot")
+    with pytest.raises(InputError, match="does not exist"):
+        check_output_path(tmp_path / "nodir" / "x.toml")
+    src = tmp_path / "in.toml"
+    src.write_text("[load]\n")
+    with pytest.raises(InputError, match="also an input"):
+        check_output_path(tmp_path / "." / "in.toml", inputs=[None, src])
+    link = tmp_path / "link.toml"
+    link.symlink_to(src)
+    with pytest.raises(InputError, match="also an input"):
+        check_output_path(link, inputs=[src])
+    assert check_output_path(tmp_path / "out.toml", inputs=[src]) == tmp_path / "out.toml"
+
+
+@pytest.mark.parametrize(("data", "needle"), [
+    (b"[load]\nmass = 1\n\xff\xfe rest", "byte 0xff at offset 16"),
+    ("[load]\n".encode("utf-16"), "UTF-16"),
+    (b"ok = 1\n\x00", "NUL character at offset 7"),
+])
+def test_text_that_is_not_utf8_is_refused_with_the_offset(tmp_path: Path, data: bytes,
+                                                          needle: str) -> None:
+    p = tmp_path / "bin.toml"
+    p.write_bytes(data)
+    with pytest.raises(InputError) as err:
+        read_text(p, "parameter file")
+    assert needle in str(err.value) and "bin.toml" in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_a_utf8_byte_order_mark_is_skipped(tmp_path: Path) -> None:
+    p = tmp_path / "bom.toml"
+    p.write_bytes(b"\xef\xbb\xbf[load]\n")
+    assert read_text(p) == "[load]\n"
+
+
+def test_strict_json_writes_null_for_nan_and_infinities() -> None:
+    text = strict_json({"a": math.nan, "b": [math.inf, -math.inf, 1.5], "c": np.float64(2.0)})
+
+    def refuse(token: str) -> None:
+        raise AssertionError(f"non-standard JSON token {token}")
+
+    assert json.loads(text, parse_constant=refuse) == {"a": None, "b": [None, None, 1.5],
+                                                       "c": 2.0}
+
+
+def test_csv_floats_are_the_shortest_text_that_reads_back_exactly(tmp_path: Path) -> None:
+    rng = np.random.default_rng(1)
+    t = np.arange(20_000) * 1e-3  # k * ts: 2445 * 0.001 is 2.4450000000000003 in binary
+    cols = [t, rng.normal(size=t.size) * 1e-3, np.full(t.size, 2.445),
+            np.where(t > 10, np.nan, -np.inf)]
+    out = tmp_path / "r.csv"
+    write_csv(out, ["t", "a", "b", "c"], cols)
+    lines = out.read_text().splitlines()
+    assert lines[0] == "t,a,b,c" and len(lines) == t.size + 1
+    assert lines[1 + 2445].split(",")[2] == "2.445"  # no 2.4450000000000003 noise
+    back = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
+    for j, c in enumerate(cols):
+        np.testing.assert_array_equal(back[:, j], c)  # bit-exact, NaN and inf included
+
+
+def test_csv_writer_memory_does_not_grow_with_the_run(tmp_path: Path) -> None:
+    """The writer formats fixed-size blocks straight from the arrays: the memory it takes
+    above the arrays is the same for 10 000 and 80 000 rows (the issue's bound is 200 MB
+    above the arrays at 10 million rows; benchmarks/bench_csv.py measures that)."""
+    peaks = []
+    for n in (10_000, 80_000):
+        cols = [np.linspace(0.0, 1.0, n) for _ in range(8)]
+        tracemalloc.start()
+        write_csv(tmp_path / "big.csv", [f"c{i}" for i in range(8)], cols)
+        _, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        peaks.append(peak)
+    assert peaks[1] < 1.5 * peaks[0] and peaks[1] < 30e6, peaks
+
+
+def test_no_pickle_anywhere_in_the_package() -> None:
+    hits = [f"{p.relative_to(SRC)}:{i}" for p in SRC.rglob("*.py")
+            for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+            if re.search(r"\b(import\s+(c?pickle|dill|shelve|marshal)|from\s+(c?pickle|dill|"
+                         r"shelve|marshal)\s+import|allow_pickle\s*=\s*True)", line)]
+    assert not hits, hits
