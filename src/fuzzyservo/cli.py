@@ -22,9 +22,11 @@ import importlib
 import os
 import signal
 import sys
+import threading
 import warnings
 from collections.abc import Iterator, Sequence
 from types import FrameType
+from typing import Any
 
 from . import __version__
 from .errors import FuzzyServoError
@@ -57,6 +59,23 @@ class Terminated(KeyboardInterrupt):
 
 def _on_sigterm(signum: int, frame: FrameType | None) -> None:
     raise Terminated(signum)
+
+
+def _unraisable(previous: Any) -> Any:
+    """A ``sys.unraisablehook`` that re-raises an interruption swallowed by a finalizer.
+
+    Ctrl-C that lands inside a weakref callback or ``__del__`` (matplotlib runs many) is
+    "ignored" by Python, with a traceback on stderr, and the run goes on. This hook prints
+    nothing and raises the same signal again, so the main code sees it at the next step."""
+    def hook(unraisable: Any) -> None:
+        exc = unraisable.exc_value
+        if isinstance(exc, KeyboardInterrupt):
+            signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
+            # sent from another thread, it is handled once this hook has returned
+            threading.Timer(0.005, os.kill, (os.getpid(), signum)).start()
+            return
+        previous(unraisable)
+    return hook
 
 
 def _chain(exc: BaseException) -> Iterator[BaseException]:
@@ -105,6 +124,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     except ValueError:  # not the main thread: leave SIGTERM alone
         pass
+    hook = sys.unraisablehook
+    sys.unraisablehook = _unraisable(hook)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
@@ -121,6 +142,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               file=sys.stderr)
         return EXIT_INTERRUPT
     finally:
+        sys.unraisablehook = hook
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 

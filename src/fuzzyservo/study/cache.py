@@ -112,6 +112,11 @@ def load_study(path: str | Path, *, key: str, version: str) -> PlantStudy:
         The entry cannot be used; the message says why (for a one-line warning).
     """
     try:
+        with Path(path).open("rb") as fh:
+            magic = fh.read(4)
+        if magic != b"PK\x03\x04":
+            raise CacheEntryError("not an .npz archive" + (
+                " (a pickle, which fuzzyservo never loads)" if magic[:1] == b"\x80" else ""))
         with np.load(Path(path), allow_pickle=False) as z:
             if "meta" not in z.files:
                 raise CacheEntryError("no 'meta' entry (not a fuzzyservo cache entry)")
