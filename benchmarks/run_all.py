@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["fuzzy_engine.py", "plant.py", "closed_loop.py", "tuning.py"]
+ORDER = ["fuzzy_engine.py", "plant.py", "closed_loop.py", "tuning.py", "csv_write.py"]
 
 
 def main() -> int:
