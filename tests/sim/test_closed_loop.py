@@ -218,16 +218,20 @@ def test_matrix_exponential_matches_scipy(servo: LinearServo, h: float) -> None:
         assert np.max(np.abs(expm_pade13(mat) - ref)) <= 1e-13 * np.max(np.abs(ref))
 
 
-def test_a_delay_longer_than_the_run_never_reaches_the_plant(servo: LinearServo) -> None:
-    """The command buffer is sized by the run, not by the delay: 1e9 s of delay costs nothing,
-    and the plant holds its start command for the whole run (issue 8 review)."""
+def test_a_delay_as_long_as_the_run_never_reaches_the_plant(servo: LinearServo) -> None:
+    """The command buffer is sized by the run, not by the delay: a delay of the whole run
+    holds the plant at its start command throughout (issue 8 review). ``simulate`` refuses a
+    longer one (issue 9, row 9); the batch kernels still cap it, 1e9 s costing nothing."""
     from fuzzyservo.paper import paper_params
     from fuzzyservo.registry import build_plant
     from fuzzyservo.sim import simulate_batch
 
     ctl = PIDController(dt=H, kp=8.0, ki=1.0, kd=0.01)
     for plant in (LinearPlant.from_servo(servo, 0.5), build_plant("nonlinear", paper_params())):
-        res = simulate(ctl, plant, Step(0.1), duration=0.5, delay=1e9)
+        with pytest.raises(ParameterError, match=r"delay 1000000000\.0 s is longer than the "
+                                                 r"run \(0\.5 s\)"):
+            simulate(ctl, plant, Step(0.1), duration=0.5, delay=1e9)
+        res = simulate(ctl, plant, Step(0.1), duration=0.5, delay=0.5)
         assert np.all(res.y == plant.y0)  # exactly at rest: the trim command is held
         # the error never shrinks: u_k = u0 + kp e + ki h (k + 1) e, the derivative kick of
         # the first sample decayed by (1 + N h)^-500 (1e-21); rounding of the sum only

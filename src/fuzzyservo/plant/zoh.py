@@ -36,8 +36,12 @@ __all__ = ["DiscreteModel", "check_delay", "discretize", "expm", "split_delay"]
 _WHOLE_SAMPLE_TOL = 1e-9
 
 
-def check_delay(delay: float) -> float:
-    """A transport delay [s], validated: finite and >= 0.
+def check_delay(delay: float, *, duration: float | None = None) -> float:
+    """A transport delay [s], validated: finite, >= 0 and, when the run's ``duration`` [s] is
+    given, at most that long.
+
+    A command delayed past the end of the run never reaches the plant, so a longer delay
+    only describes a run in which nothing happens (and, unchecked, sized buffers by it).
 
     Raises
     ------
@@ -50,6 +54,10 @@ def check_delay(delay: float) -> float:
         value = math.nan
     if not (math.isfinite(value) and value >= 0.0):
         raise ParameterError(f"delay must be finite and >= 0 s, got {delay!r}")
+    if duration is not None and math.isfinite(duration) and 0.0 < duration < value:
+        raise ParameterError(f"delay {value!r} s is longer than the run ({duration!r} s); at "
+                             f"most the run's duration is allowed (a command delayed past the "
+                             f"end never reaches the plant)")
     return value
 
 

@@ -37,13 +37,19 @@ from ..errors import InputError, ParameterError, SimulationDivergedError
 from ..plant.nonlinear import (
     N_PARAMS,
     P_FEXT,
+    P_L,
     P_RES,
     STATE_NAMES,
     pack,
     rk4_advance_ws,
 )
 from ..plant.zoh import check_delay, discretize, split_delay
-from .references import Reference, sample_reference
+from .references import (
+    Reference,
+    check_reference,
+    check_reference_samples,
+    sample_reference,
+)
 from .result import SimResult
 
 __all__ = [
@@ -56,6 +62,7 @@ __all__ = [
     "run_loop",
     "run_nonlinear",
     "check_delay",
+    "plant_limits",
     "ring_size",
     "simulate",
     "time_grid",
@@ -83,6 +90,9 @@ class LinearPlant:
         Operating point, the state at rest (n,) [state units]; zeros when empty (default).
     u0 : float
         Command that holds the operating point [-]; 0 by default.
+    stroke : float or None
+        Stroke of the cylinder the model stands for [m]: :func:`simulate` keeps references
+        within [0, stroke]. None (default): not known, not checked.
     """
 
     a: FloatArray  #: state matrix [1/s]
@@ -91,8 +101,11 @@ class LinearPlant:
     state_names: tuple[str, ...] = ()  #: state names
     x_op: FloatArray = field(default_factory=lambda: np.empty(0))  #: operating point [SI]
     u0: float = 0.0  #: holding command [-]
+    stroke: float | None = None  #: stroke of the cylinder [m]; None: unknown
 
     def __post_init__(self) -> None:
+        if self.stroke is not None and not (math.isfinite(self.stroke) and self.stroke > 0.0):
+            raise ParameterError(f"stroke must be finite and > 0 m, got {self.stroke!r}")
         a = np.atleast_2d(np.asarray(self.a, dtype=np.float64))
         b = np.asarray(self.b, dtype=np.float64).reshape(-1)
         c = np.asarray(self.c, dtype=np.float64).reshape(-1)
@@ -130,15 +143,17 @@ class LinearPlant:
                    np.asarray(c, dtype=np.float64), **kw)
 
     @classmethod
-    def from_servo(cls, servo: Any, position: float = 0.0) -> LinearPlant:
+    def from_servo(cls, servo: Any, position: float = 0.0, *,
+                   stroke: float | None = None) -> LinearPlant:
         """From a :class:`fuzzyservo.plant.LinearServo` (eq. 8) at rest at ``position`` [m]:
-        its block states, the position state ``x`` absolute, the others 0 at rest."""
+        its block states, the position state ``x`` absolute, the others 0 at rest; ``stroke``
+        [m] as the class's attribute."""
         a, b, c, d = servo.state_space()
         names: tuple[str, ...] = servo.state_names
         x_op = np.zeros(len(names))
         x_op[names.index("x")] = float(position)
         return cls.from_state_space(a, np.ravel(b), np.ravel(c), d, state_names=names,
-                                    x_op=x_op)
+                                    x_op=x_op, stroke=stroke)
 
     @classmethod
     def from_linearization(cls, lin: Any) -> LinearPlant:
@@ -149,7 +164,7 @@ class LinearPlant:
         return cls(np.asarray(lin.a), np.asarray(lin.b), np.asarray(lin.c),
                    state_names=tuple(lin.state_names),
                    x_op=np.asarray(lin.trim.state, dtype=np.float64)[keep],
-                   u0=float(lin.trim.command))
+                   u0=float(lin.trim.command), stroke=float(lin.params.cylinder.stroke))
 
     @property
     def n_states(self) -> int:
@@ -230,6 +245,15 @@ class NonlinearPlant:
 
 
 Plant = LinearPlant | NonlinearPlant
+
+
+def plant_limits(plant: Plant) -> tuple[float | None, float]:
+    """``(stroke, resolution)`` of a plant [m]: the stroke a reference must stay in (None when
+    the plant does not know it) and the transducer resolution its measurement is rounded to
+    (0: exact; only the nonlinear plant rounds)."""
+    if isinstance(plant, NonlinearPlant):
+        return float(plant.packed[P_L]), float(plant.packed[P_RES])
+    return plant.stroke, 0.0
 
 #: The transport delay every entry point uses when none is given [s]: none. The paper's
 #: Figs. 4-7 and its tuning are without the hose delay; Fig. 8 adds it as a robustness test.
@@ -407,11 +431,14 @@ def time_grid(duration: float, ts: float) -> FloatArray:
     if not (math.isfinite(duration) and duration >= ts):
         raise ParameterError(
             f"duration must be finite and at least one sample ({ts!r} s), got {duration!r}")
-    n = int(math.floor(duration / ts + 1e-9)) + 1
+    ratio = duration / ts  # inf for a subnormal ts
+    n: int | float = int(math.floor(ratio + 1e-9)) + 1 if math.isfinite(ratio) else math.inf
     if n > MAX_SAMPLES:
         raise ParameterError(
-            f"duration {duration!r} s at sample time {ts!r} s needs {n} samples; at most "
+            f"duration {duration!r} s at sample time {ts!r} s needs "
+            f"{n if math.isfinite(n) else 'more than 1e308'} samples; at most "
             f"{MAX_SAMPLES} are allowed (lengthen the sample time or shorten the run)")
+    n = int(n)
     return np.arange(n, dtype=np.float64) * ts
 
 
@@ -522,16 +549,23 @@ def simulate(
     Raises
     ------
     ParameterError
-        Bad sample time, duration, delay or noise level.
+        Bad sample time, duration, noise level, or a delay longer than the run.
     InputError
-        A non-finite reference or disturbance.
+        A non-finite reference or disturbance; a reference that leaves the stroke, starts
+        after the end of the run, or (a sine) aliases at the sample time; a transducer
+        resolution coarser than the reference's move
+        (:func:`~fuzzyservo.sim.references.check_reference`,
+        :func:`~fuzzyservo.sim.references.check_reference_samples`).
     SimulationDivergedError
         The plant state became non-finite; the message names the time and state.
     """
     ts = float(controller.dt)
+    delay = check_delay(delay, duration=duration)
     t = time_grid(duration, ts)
-    delay = check_delay(delay)
+    check_reference(reference, ts=ts, duration=duration)
     r = sample_reference(reference, t) + plant.y0
+    stroke, resolution = plant_limits(plant)
+    check_reference_samples(r, t, start=plant.y0, stroke=stroke, resolution=resolution)
     noise = _noise(noise_std, rng, (t.size,))
     run = run_loop(controller, plant, r, delay=delay, disturbance=disturbance, noise=noise, t=t)
     info: dict[str, Any] = {"controller": controller, "plant": plant, "noise_std": noise_std}

@@ -25,6 +25,8 @@ __all__ = [
     "Step",
     "Trapezoid",
     "UserReference",
+    "check_reference",
+    "check_reference_samples",
     "parse_reference",
     "sample_reference",
 ]
@@ -34,6 +36,15 @@ def _finite(name: str, value: float) -> float:
     v = float(value)
     if not math.isfinite(v):
         raise InputError(f"reference {name} must be finite, got {value!r}")
+    return v
+
+
+def _time(name: str, value: float) -> float:
+    """A time of a reference [s]: finite and >= 0 (the run starts at t = 0)."""
+    v = _finite(name, value)
+    if v < 0.0:
+        raise InputError(f"reference {name} must be >= 0 s (the run starts at t = 0), "
+                         f"got {value!r}")
     return v
 
 
@@ -54,7 +65,7 @@ class Step:
 
     def __post_init__(self) -> None:
         _finite("step amplitude", self.amplitude)
-        _finite("step time", self.time)
+        _time("step time", self.time)
 
     def values(self, t: FloatArray) -> FloatArray:
         """r(t) [m]."""
@@ -74,7 +85,7 @@ class MultiStep:
                 f"multistep needs as many times as levels (>= 1), got {len(self.times)} "
                 f"and {len(self.levels)}")
         for x in self.times:
-            _finite("multistep time", x)
+            _time("multistep time", x)
         for x in self.levels:
             _finite("multistep level", x)
         if any(b <= a for a, b in zip(self.times, self.times[1:], strict=False)):
@@ -97,9 +108,12 @@ class Ramp:
 
     def __post_init__(self) -> None:
         _finite("ramp slope", self.slope)
-        _finite("ramp time", self.time)
+        _time("ramp time", self.time)
         if self.final is not None:
             _finite("ramp final value", self.final)
+            if self.final * self.slope < 0.0:
+                raise InputError(f"ramp final value {self.final!r} m lies against the slope "
+                                 f"{self.slope!r} m/s; give a final value of the slope's sign")
 
     def values(self, t: FloatArray) -> FloatArray:
         """r(t) [m]."""
@@ -111,14 +125,20 @@ class Ramp:
 
 @dataclass(frozen=True, slots=True)
 class Sine:
-    """``amplitude`` sin(2π ``frequency`` t) [m]."""
+    """``amplitude`` sin(2π ``frequency`` t) [m]; a negative amplitude flips the phase.
+
+    A run samples it every T_s: :func:`check_reference` refuses a frequency at or above half
+    the sample rate (Nyquist), which the samples could not represent.
+    """
 
     amplitude: float  #: amplitude [m]
-    frequency: float  #: frequency [Hz]
+    frequency: float  #: frequency [Hz], > 0
 
     def __post_init__(self) -> None:
         _finite("sine amplitude", self.amplitude)
-        _finite("sine frequency", self.frequency)
+        if not _finite("sine frequency", self.frequency) > 0.0:
+            raise InputError(f"sine frequency must be > 0 Hz (a negative amplitude flips the "
+                             f"phase), got {self.frequency!r}")
 
     def values(self, t: FloatArray) -> FloatArray:
         """r(t) [m]."""
@@ -137,7 +157,7 @@ class Trapezoid:
 
     def __post_init__(self) -> None:
         _finite("trapezoid distance", self.distance)
-        _finite("trapezoid start time", self.time)
+        _time("trapezoid start time", self.time)
         for name, v in (("v_max", self.v_max), ("a_max", self.a_max)):
             if not (_finite(f"trapezoid {name}", v) > 0.0):
                 raise InputError(f"trapezoid {name} must be > 0, got {v!r}")
@@ -233,6 +253,96 @@ def parse_reference(spec: str) -> Reference:
     raise InputError(
         f"unknown reference {spec!r}; allowed: step:A[:T], multistep:T1=A1,..., "
         f"ramp:SLOPE[:T[:FINAL]], sine:A:F, trapezoid:DIST:VMAX:AMAX[:T]")
+
+
+def _first_change(reference: object) -> tuple[str, float] | None:
+    """The instant a reference first departs from 0, with the name of that time; None when it
+    has no such instant (a sine, user samples)."""
+    if isinstance(reference, Step | Ramp | Trapezoid):
+        return {Step: "step time", Ramp: "ramp time",
+                Trapezoid: "trapezoid start time"}[type(reference)], reference.time
+    if isinstance(reference, MultiStep):
+        return "first multistep time", reference.times[0]
+    return None
+
+
+def check_reference(reference: Reference | ArrayLike, *, ts: float, duration: float) -> None:
+    """Check a reference against the run that samples it, before the run.
+
+    A sine must lie below half the sample rate, f < 1/(2 T_s): at or above it the samples
+    alias (at f = 1/T_s every sample lands on the same phase, a flat reference). A step,
+    ramp, multistep or trapezoid must start before the end of the run. Sampled references
+    (arrays) have nothing to check here.
+
+    Parameters
+    ----------
+    reference : Reference or array
+        The reference (offset from the start position) [m].
+    ts : float
+        Sample time of the run [s].
+    duration : float
+        Simulated time [s].
+
+    Raises
+    ------
+    InputError
+        A sine at or above half the sample rate, or a reference that starts at or after the
+        end of the run.
+    """
+    if isinstance(reference, Sine):
+        nyquist = 0.5 / ts
+        if reference.frequency >= nyquist:
+            raise InputError(
+                f"sine frequency {reference.frequency!r} Hz is at or above half the sample "
+                f"rate, 1/(2 ts) = {nyquist:g} Hz at ts = {ts!r} s: the samples would alias; "
+                f"give a frequency below {nyquist:g} Hz or a shorter sample time")
+    first = _first_change(reference)
+    if first is not None and first[1] >= duration:
+        raise InputError(f"reference {first[0]} {first[1]!r} s is at or after the end of the "
+                         f"run ({duration!r} s): nothing would happen; give a time below "
+                         f"{duration!r} s or a longer --duration")
+
+
+def check_reference_samples(r: FloatArray, t: FloatArray, *, start: float,
+                            stroke: float | None = None, resolution: float = 0.0) -> None:
+    """Check a sampled absolute reference against the plant, before the run.
+
+    Parameters
+    ----------
+    r : array (n,)
+        Absolute reference, start position plus offset [m].
+    t : array (n,)
+        Sample times [s].
+    start : float
+        Start position of the run [m].
+    stroke : float, optional
+        Stroke of the cylinder [m]: the reference must stay within [0, stroke]. None: not
+        checked (a plant that does not know its stroke).
+    resolution : float
+        Transducer resolution [m] (0: exact): it must not be coarser than the reference's
+        largest move from the start, which the measurement could not resolve.
+
+    Raises
+    ------
+    InputError
+        A reference outside the stroke, or a resolution coarser than the move.
+    """
+    if r.size == 0:
+        return
+    if stroke is not None:
+        bad = np.nonzero((r < 0.0) | (r > stroke))[0]
+        if bad.size:
+            k = int(bad[0])
+            raise InputError(
+                f"the reference reaches {float(r[k]):.6g} m at t = {float(t[k]):.6g} s (start "
+                f"{start:.6g} m + offset {float(r[k]) - start:.6g} m), outside the stroke "
+                f"[0, {stroke:g}] m; keep start + reference within the stroke")
+    move = float(np.max(np.abs(r - start)))
+    if resolution > 0.0 and move > 0.0 and resolution > move * (1.0 + 1e-9):  # rounding
+        raise InputError(
+            f"transducer.resolution {resolution!r} m is coarser than the reference's largest "
+            f"move {move:.6g} m: the measurement could not resolve it; give a resolution of "
+            f"at most {move:.6g} m")
 
 
 def sample_reference(reference: Reference | ArrayLike, t: FloatArray) -> FloatArray:
