@@ -187,3 +187,32 @@ def test_bad_inputs(paper: ServoParams) -> None:
         build_plant("nonlinear", paper, 1.2)
     with pytest.raises(ParameterError, match="solve_ivp.*nonlinear"):
         _run(paper, 0.1, duration=0.1, plant="linear", method="solve_ivp")
+
+
+def test_solve_ivp_has_a_step_limit_and_reports_progress(paper: ServoParams) -> None:
+    """Issue 9, row 12: the reference method counts its right-hand-side evaluations. A normal
+    1 s run needs about 3e3, far below the default limit (1e6); a stiff model stops at the
+    limit with one line saying what to do; progress reports reach the end of the run."""
+    plant = build_plant("nonlinear", paper, 0.5)
+    seen: list[float] = []
+    res = simulate_open_loop(plant, 0.5, duration=1.0, method="solve_ivp",
+                             max_rhs_evals=10_000, progress=lambda t, d: seen.append(t / d))
+    assert res.method == "solve_ivp:DOP853"
+    assert seen and seen[-1] == pytest.approx(1.0) and seen == sorted(seen)
+    stiff = build_plant("nonlinear", with_overrides(paper, {"load.mass": 1e-6}), 0.5)
+    with pytest.raises(ParameterError, match=r"after 5000 right-hand-side evaluations, its "
+                                             r"limit \(max_rhs_evals\).*--method rk4") as info:
+        simulate_open_loop(stiff, 0.5, duration=1.0, method="solve_ivp", max_rhs_evals=5000)
+    assert "\n" not in str(info.value)
+    for bad in (0, -1, 2.5, True):
+        with pytest.raises(ParameterError, match="max_rhs_evals must be an integer >= 1"):
+            simulate_open_loop(plant, 0.5, duration=0.01, method="solve_ivp",
+                               max_rhs_evals=bad)  # type: ignore[arg-type]
+
+
+def test_open_loop_delay_at_most_the_run(paper: ServoParams) -> None:
+    plant = build_plant("linear", paper, 0.5)
+    res = simulate_open_loop(plant, 0.1, duration=0.05, delay=0.05)
+    assert np.all(res.y == res.y[0])  # the command never arrives
+    with pytest.raises(ParameterError, match=r"delay 0\.0501 s is longer than the run"):
+        simulate_open_loop(plant, 0.1, duration=0.05, delay=0.0501)
