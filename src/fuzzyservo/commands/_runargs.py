@@ -1,11 +1,14 @@
 """Options shared by the commands that build a controller or a run: the registry's controller
 and plant names, ``--gains`` (a gains file or NAME=VALUE pairs), ``--delay`` (seconds or
-``hose``) and the controller options."""
+``hose``) and the controller options; a progress bar over simulated time."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +28,7 @@ __all__ = [
     "controller_from_args",
     "delay_from_args",
     "parse_gains_pairs",
+    "simulated_time_progress",
 ]
 
 #: Controller options on the command line -> keyword of the controller classes.
@@ -75,6 +79,48 @@ def delay_from_args(text: str | None, params: ServoParams) -> float:
     return value
 
 
+@contextlib.contextmanager
+def simulated_time_progress(desc: str, *, enabled: bool = True, file: Any = None
+                            ) -> Iterator[Callable[[float, float], None] | None]:
+    """A progress callback ``(t, duration)`` [s] drawing a tqdm bar on standard error over
+    simulated time (rate in simulated seconds per second, and the time left), or None when
+    not ``enabled`` or standard error is not a terminal (no bar in logs and pipes).
+
+    Use as ``with simulated_time_progress("solve_ivp") as progress: simulate_open_loop(...,
+    progress=progress)``; the bar is closed when the block ends, left on screen after a run
+    and wiped after an error (whose message is then the only line).
+    """
+    stream = sys.stderr if file is None else file
+    if not enabled or not (file is not None or stream.isatty()):
+        yield None
+        return
+    from tqdm import tqdm
+
+    bar: Any = None
+    state = {"t": 0.0}
+
+    def report(t: float, duration: float) -> None:
+        nonlocal bar
+        if bar is None:
+            bar = tqdm(total=duration, desc=desc, unit="s", file=stream, leave=True,
+                       bar_format="{desc}: {n:.4g}/{total:.4g} s simulated |{bar}| "
+                                  "[{elapsed}<{remaining}, {rate_fmt}]")
+        step = min(max(t, state["t"]), duration) - state["t"]
+        if step > 0.0:
+            state["t"] += step
+            bar.update(step)
+
+    try:
+        yield report
+    except BaseException:
+        if bar is not None:  # an error's one line stands alone: the bar is wiped
+            bar.leave = False
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+
+
 def add_controller_arguments(parser: argparse.ArgumentParser | Any) -> None:
     """``--controller``, ``--gains`` and the controller options."""
     names = controller_names()
@@ -110,9 +156,9 @@ def parse_gains_pairs(text: str) -> dict[str, float]:
     for item in filter(None, (s.strip() for s in text.split(","))):
         name, sep, value = item.partition("=")
         name = name.strip().lower()
-        if not sep or not name:
-            raise ParameterError(f"--gains expects a gains file (.toml) or NAME=VALUE pairs, "
-                                 f"got {item!r}")
+        if not sep or not name.isidentifier():
+            raise ParameterError(f"--gains expects a gains file (.toml) or NAME=VALUE pairs "
+                                 f"(a name is letters, digits and _), got {item!r}")
         if name in gains:
             raise ParameterError(f"gain {name} is given twice in --gains; give each once")
         try:
