@@ -38,11 +38,13 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..control.fuzzy_pi import KernelSystem
-from ..errors import ParameterError
+from ..errors import FuzzyServoError, ParameterError
 from ..plant import ServoParams
+from ..plant.zoh import check_delay
 from ..registry import ControllerKind, build_plant, controller_kind, plant_kind
 from ..sim import DEFAULT_DELAY, Plant, Step, simulate_batch
-from ..sim.closed_loop import time_grid
+from ..sim.closed_loop import plant_limits, time_grid
+from ..sim.references import check_reference_samples
 from ..sim.stepinfo import METRIC_NAMES
 from .tuning import (
     OBJECTIVES,
@@ -54,11 +56,14 @@ from .tuning import (
 )
 
 __all__ = [
+    "MAX_MAXITER",
+    "MAX_POPSIZE",
     "Checkpoint",
     "StageRecord",
     "TunedGains",
     "TuningProgress",
     "TuningSetup",
+    "check_run",
     "default_bounds",
     "full_gains",
     "make_evaluator",
@@ -74,6 +79,15 @@ def _version() -> str:
         return version("fuzzyservo")
     except PackageNotFoundError:  # running from a source tree that is not installed
         return "unknown"
+
+
+#: Largest population multiplier: 10 times the default; with k searched gains a generation is
+#: popsize * k closed-loop runs (300 for a PID at the cap, some 10 s of CPU per generation for
+#: 10 s runs on the linear plant). Storn and Price advise 5-10 members per searched gain.
+MAX_POPSIZE = 100
+#: Largest generation limit: 25 times the default (40); the search usually converges well
+#: before the default, so more only spends time.
+MAX_MAXITER = 1000
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -100,8 +114,8 @@ class TuningSetup:
     ts : float
         Controller sample period [s].
     delay : float
-        Transport delay on the command [s]; default ``DEFAULT_DELAY`` (none), as the paper
-        tunes and as every other entry point runs.
+        Transport delay on the command [s], at most ``duration``; default ``DEFAULT_DELAY``
+        (none), as the paper tunes and as every other entry point runs.
     objective : {"iae", "itae", "ise"}
         Integral criterion minimised.
     constraints : TuningConstraints
@@ -109,7 +123,8 @@ class TuningSetup:
     seed : int
         Seed of the search.
     popsize, maxiter : int
-        Differential-evolution population multiplier and generation limit (stage 1 for stfpi).
+        Differential-evolution population multiplier (2 to :data:`MAX_POPSIZE`) and generation
+        limit (1 to :data:`MAX_MAXITER`) (stage 1 for stfpi).
     pid_n : float
         Derivative filter coefficient n held while tuning a kind with that gain [1/s].
     polish : bool
@@ -151,6 +166,7 @@ class TuningSetup:
         if not (math.isfinite(self.delay) and self.delay >= 0.0):
             raise ParameterError(f"TuningSetup.delay must be finite and >= 0 s, got "
                                  f"{self.delay!r}")
+        check_delay(self.delay, duration=self.duration)
         if not 0.0 < self.start < 1.0:
             raise ParameterError(f"TuningSetup.start must be a fraction of the stroke in "
                                  f"(0, 1), got {self.start!r}")
@@ -160,9 +176,12 @@ class TuningSetup:
         time_grid(self.duration, self.ts)  # at most MAX_SAMPLES samples per run
         if not (isinstance(self.seed, int) and self.seed >= 0):
             raise ParameterError(f"seed must be a non-negative integer, got {self.seed!r}")
-        if self.popsize < 2 or self.maxiter < 1:
-            raise ParameterError(f"need popsize >= 2 and maxiter >= 1, got {self.popsize}, "
-                                 f"{self.maxiter}")
+        if not 2 <= self.popsize <= MAX_POPSIZE:
+            raise ParameterError(f"popsize must be between 2 and {MAX_POPSIZE}, got "
+                                 f"{self.popsize!r}")
+        if not 1 <= self.maxiter <= MAX_MAXITER:
+            raise ParameterError(f"maxiter must be between 1 and {MAX_MAXITER}, got "
+                                 f"{self.maxiter!r}")
         b = self.bounds
         if b is not None and b.names != default_bounds(self.controller, self.step).names:
             raise ParameterError(
@@ -433,10 +452,61 @@ def _search(setup: TuningSetup, evaluate: Evaluator, bounds: GainBounds, stage: 
                                     best_cost=best, population=pop,
                                     n_evaluations=count["n"], done=dict(done)))
 
-    res = tune(counted, bounds, objective=setup.objective, constraints=setup.constraints,
-               step_size=setup.step, seed=seed, popsize=popsize, maxiter=maxiter,
-               init=init, polish=setup.polish, on_generation=on_gen)
+    try:
+        res = tune(counted, bounds, objective=setup.objective, constraints=setup.constraints,
+                   step_size=setup.step, seed=seed, popsize=popsize, maxiter=maxiter,
+                   init=init, polish=setup.polish, on_generation=on_gen)
+    except Exception as exc:
+        # scipy's differential evolution re-raises a ValueError of the objective as a
+        # RuntimeError "from" it: surface our own error, one line, as itself
+        own = _own_error(exc)
+        if own is None or own is exc:
+            raise
+        raise own from None
     return np.array([[res.gains[n] for n in bounds.names]]), count["n"]
+
+
+def _own_error(exc: BaseException) -> FuzzyServoError | None:
+    """The first :class:`FuzzyServoError` in the ``raise ... from`` chain of ``exc``, or None."""
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        if isinstance(e, FuzzyServoError):
+            return e
+        seen.add(id(e))
+        e = e.__cause__
+    return None
+
+
+def check_run(setup: TuningSetup, params: ServoParams) -> None:
+    """Check the tuning's step against the plant before any search: start + step within the
+    stroke, the transducer resolution no coarser than the step.
+
+    Raises
+    ------
+    InputError
+        Otherwise (:func:`fuzzyservo.sim.references.check_reference_samples`).
+    ParameterError
+        No equilibrium at the start position.
+    """
+    stroke, resolution = plant_limits(_plant(setup, params))
+    start = setup.start * params.cylinder.stroke
+    check_reference_samples(np.array([start + setup.step]), np.array([0.0]),
+                            start=start, stroke=stroke if stroke is not None else
+                            params.cylinder.stroke, resolution=resolution)
+
+
+def _check_resume(resume: Checkpoint, bounds: GainBounds) -> None:
+    pop = resume.population
+    k = len(bounds.names)
+    if pop.ndim != 2 or pop.shape[1] != k or not np.all(np.isfinite(pop)):
+        raise ParameterError(f"checkpoint population must be finite with {k} columns "
+                             f"({', '.join(bounds.names)}), got shape {pop.shape}; delete the "
+                             f"checkpoint or run without --resume")
+    for name, v in resume.done.items():
+        if len(v) != k or not all(math.isfinite(x) for x in v):
+            raise ParameterError(f"checkpoint stage {name!r} must hold {k} finite gains, got "
+                                 f"{len(v)}; delete the checkpoint or run without --resume")
 
 
 def _rise_match(setup: TuningSetup, evaluate: Evaluator, base: FloatArray, col: int,
@@ -515,7 +585,10 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
     Raises
     ------
     ParameterError
-        A missing fuzzy system, or a checkpoint of another setup.
+        A missing fuzzy system, or a checkpoint of another setup or of the wrong shape.
+    InputError
+        The step leaves the stroke, or the transducer resolution is coarser than the step
+        (:func:`check_run`).
 
     Notes
     -----
@@ -535,6 +608,9 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
     t0 = time.perf_counter()
     kind = setup.kind
     bounds = setup.search_bounds()
+    if resume is not None:
+        _check_resume(resume, bounds)
+    check_run(setup, params)
     done: dict[str, tuple[float, ...]] = dict(resume.done) if resume else {}
 
     def init_for(stage: str) -> FloatArray | None:

@@ -7,6 +7,13 @@ plant of the registry; what is searched is the controller's registry entry.
 
 A progress bar per search stage goes to stderr. Ctrl-C writes the current population to
 ``OUT.partial.npz`` next to ``--out``; ``--resume`` continues from it.
+
+Everything is checked before the search starts: ``--out`` (its folder exists and is writable,
+it is not a folder nor the ``--params`` file), the run (``--duration``/``--ts`` at most
+:data:`~fuzzyservo.sim.closed_loop.MAX_SAMPLES` samples, ``--delay`` at most ``--duration``,
+start + ``--step`` within the stroke, the transducer resolution no coarser than the step),
+``--popsize`` and ``--maxiter`` (at most :data:`~fuzzyservo.analysis.autotune.MAX_POPSIZE` and
+:data:`~fuzzyservo.analysis.autotune.MAX_MAXITER`) and the checkpoint of ``--resume``.
 """
 
 from __future__ import annotations
@@ -18,7 +25,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..analysis.autotune import Checkpoint, TuningProgress, TuningSetup, tune_controller
+from .._io import check_output_path
+from ..analysis.autotune import (
+    MAX_MAXITER,
+    MAX_POPSIZE,
+    Checkpoint,
+    TuningProgress,
+    TuningSetup,
+    tune_controller,
+)
 from ..analysis.tuning import OBJECTIVES, TuningConstraints
 from ..errors import ParameterError
 from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gains_toml
@@ -53,19 +68,23 @@ def register(subparsers: Any) -> None:
                    help="largest allowed |u| as a fraction of the rated command (default none)")
     p.add_argument("--seed", type=int, default=0, help="seed of the search (default 0)")
     p.add_argument("--popsize", type=int, default=10,
-                   help="population multiplier (default 10)")
-    p.add_argument("--maxiter", type=int, default=40, help="generation limit (default 40)")
+                   help=f"population multiplier, 2 to {MAX_POPSIZE}: popsize x (searched "
+                        f"gains) runs per generation (default 10)")
+    p.add_argument("--maxiter", type=int, default=40,
+                   help=f"generation limit, 1 to {MAX_MAXITER} (default 40)")
     p.add_argument("--step", type=float, default=0.1, metavar="M",
                    help="reference step [m] (default 0.1)")
     p.add_argument("--duration", type=float, default=10.0, metavar="S",
-                   help="simulated time per run [s] (default 10)")
+                   help="simulated time per run [s], at least 10 samples and at most "
+                        "10 million (default 10)")
     p.add_argument("--ts", type=float, default=0.001, metavar="S",
                    help="controller sample period [s] (default 0.001)")
     add_delay_argument(p)
     p.add_argument("--start", type=float, default=0.5, metavar="FRACTION",
                    help="start position as a fraction of the stroke (default 0.5)")
     p.add_argument("--out", type=Path, required=True, metavar="FILE.toml",
-                   help="gains file to write")
+                   help="gains file to write (checked before the search: its folder must "
+                        "exist, and it must not be the --params file)")
     p.add_argument("--resume", action="store_true",
                    help="continue from OUT.partial.npz left by an interrupted run")
     p.add_argument("--no-polish", dest="polish", action="store_false",
@@ -132,9 +151,9 @@ class _Progress:
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo tune``."""
+    out: Path = check_output_path(args.out, option="--out", inputs=(args.param_file,))
     params = params_from_args(args)
     setup = _setup(args, params)
-    out: Path = args.out
     ckpt_file = checkpoint_path(out)
     resume = load_checkpoint(ckpt_file) if args.resume else None
     progress = _Progress(setup, args.quiet)
