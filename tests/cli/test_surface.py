@@ -50,13 +50,13 @@ def test_surface_grid_and_plots(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("content", "match"),
     [
-        ("x,y\n1,2\n", "lacks column(s) e, de; expected e, de (found x, y)"),
+        ("x,y\n1,2\n", "lacks column(s) e, de; expected e, de (found 'x', 'y')"),
         ("e,x\n1,2\n", "lacks column(s) de"),
         ("", "is empty"),
         ("e,de\n0.1,nan\n", "line 2, column 'de': 'nan' is not finite"),
         ("e,de\n0.1,0.2\ninf,0\n", "line 3, column 'e': 'inf' is not finite"),
         ("e,de\n0.1,abc\n", "line 2, column 'de': 'abc' is not a number"),
-        ("e,de\n0.1\n", "line 2, column 'de': '(empty)' is not a number"),
+        ("e,de\n0.1\n", "line 2 has 1 value(s), the header names 2 columns"),
     ],
 )
 def test_bad_points_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str], content: str,

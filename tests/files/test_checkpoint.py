@@ -32,3 +32,19 @@ def test_not_a_checkpoint(tmp_path: Path) -> None:
         load_checkpoint(tmp_path / "junk.npz")
     with pytest.raises(InputError, match="cannot read checkpoint"):
         load_checkpoint(tmp_path / "none.npz")
+
+
+@pytest.mark.parametrize("keep", [0, 22, 800, -1])
+def test_truncated_checkpoint_is_one_line_naming_the_way_out(tmp_path: Path, keep: int) -> None:
+    """Issue 9, row 11: a checkpoint cut anywhere (here to 0, 22, 800 bytes and one byte
+    short) is an InputError naming the file and saying to delete it or run without
+    --resume, never a BadZipFile or EOFError."""
+    pop = np.random.default_rng(0).random((30, 3))
+    path = save_checkpoint(tmp_path / "g.toml.partial.npz", Checkpoint(
+        controller="pid", plant="linear", objective="itae", seed=0, stage="search",
+        generation=3, population=pop))
+    data = path.read_bytes()
+    path.write_bytes(data[:keep])
+    with pytest.raises(InputError, match="delete it or run without --resume") as info:
+        load_checkpoint(path)
+    assert "g.toml.partial.npz" in str(info.value) and "\n" not in str(info.value)

@@ -138,3 +138,32 @@ def test_a_bad_hand_written_file_names_the_problem(tmp_path: Path, text: str,
     with pytest.raises(InputError, match=needle) as info:
         read_gains_file(path)
     assert str(path) in str(info.value)
+
+
+@pytest.mark.parametrize(("data", "needle"), [
+    ("controller = 'pid'\n[gains]\nkp = 1.0\n".encode("utf-16"), "UTF-16 text"),
+    (b"controller = 'pid'\n[gains]\nkp = 1\xff.0\n", "byte 0xff at offset 33"),
+    (b"controller = 'pid'\n[gains]\nkp = 1" + b"0" * 400 + b"\n", "integer too large"),
+])
+def test_gains_file_read_strictly(tmp_path: Path, data: bytes, needle: str) -> None:
+    """Issue 9, row 8: a gains file is strict UTF-8 (the offset of a bad byte named) and a
+    number a float cannot hold is refused by key, not an OverflowError."""
+    path = tmp_path / "g.toml"
+    path.write_bytes(data)
+    with pytest.raises(InputError, match=needle) as info:
+        read_gains_file(path)
+    assert "g.toml" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_gains_file_bounds_must_be_numbers(tmp_path: Path, tuned_stfpi: TunedGains) -> None:
+    import tomllib
+
+    import tomli_w
+
+    path = write_gains_toml(tmp_path / "g.toml", tuned_stfpi)
+    doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    first = next(iter(doc["tuning"]["bounds"]))
+    doc["tuning"]["bounds"][first][1] = "ten"
+    path.write_text(tomli_w.dumps(doc), encoding="utf-8")
+    with pytest.raises(InputError, match=f"'tuning.bounds.{first}.upper' has the wrong type"):
+        read_gains_toml(path)

@@ -6,7 +6,11 @@ An ``.npz`` file with the population array and a JSON header, read back with
 
 from __future__ import annotations
 
+import io
 import json
+import struct
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -37,16 +41,24 @@ def save_checkpoint(path: str | Path, ckpt: Checkpoint) -> Path:
 
 
 def load_checkpoint(path: str | Path) -> Checkpoint:
-    """Read a checkpoint written by :func:`save_checkpoint`.
+    """Read a checkpoint written by :func:`save_checkpoint` (data only: ``allow_pickle=False``).
 
     Raises
     ------
     InputError
-        If the file is missing or not a checkpoint.
+        The file is missing, or is not a complete checkpoint (truncated, another format, a
+        header without a field); the message names the file and says to delete it or to run
+        without ``--resume``.
     """
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as z:
+        data = path.read_bytes()
+    except OSError as exc:
+        missing = isinstance(exc, FileNotFoundError)
+        raise InputError(f"cannot read checkpoint {str(path)!r}: {exc.strerror or exc}; "
+                         f"{'' if missing else 'delete it or '}run without --resume") from None
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
             pop = np.asarray(z["population"], dtype=np.float64)
             h = json.loads(str(z["header"]))
         return Checkpoint(controller=str(h["controller"]), plant=str(h["plant"]),
@@ -55,8 +67,9 @@ def load_checkpoint(path: str | Path) -> Checkpoint:
                           population=np.atleast_2d(pop),
                           done={str(k): tuple(float(x) for x in v)
                                 for k, v in dict(h["done"]).items()})
-    except OSError as exc:
-        raise InputError(f"cannot read checkpoint {str(path)!r}: {exc.strerror or exc}"
-                         ) from exc
-    except (ValueError, KeyError, TypeError) as exc:
-        raise InputError(f"{str(path)!r} is not a tuning checkpoint ({exc})") from exc
+    except (OSError, EOFError, ValueError, KeyError, TypeError, AttributeError,
+            zipfile.BadZipFile, zlib.error, struct.error) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(f"checkpoint {str(path)!r} is unreadable, truncated or not a "
+                         f"tuning checkpoint ({len(data)} bytes; {reason}); delete it or run "
+                         f"without --resume") from None

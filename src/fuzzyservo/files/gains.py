@@ -30,7 +30,7 @@ from typing import Any
 
 import tomli_w
 
-from .._io import write_text_atomic
+from .._io import read_text, write_text_atomic
 from ..analysis.autotune import StageRecord, TunedGains, TuningSetup
 from ..analysis.tuning import GainBounds, TuningConstraints
 from ..control.fuzzy_pi import KernelSystem
@@ -96,13 +96,18 @@ class _Reader:
 
     def get(self, table: Mapping[str, Any], key: str, kind: type | tuple[type, ...],
             where: str) -> Any:
+        name = where + str(key)
         if key not in table:
-            raise InputError(f"{str(self.path)!r}: missing key '{where}{key}'")
+            raise InputError(f"{str(self.path)!r}: missing key {name!r}")
         v = table[key]
         if kind is float and isinstance(v, int) and not isinstance(v, bool):
-            v = float(v)
+            try:
+                v = float(v)
+            except OverflowError:
+                raise InputError(f"{str(self.path)!r}: key {name!r} is an integer too large "
+                                 f"for a float ({len(str(abs(v)))} digits)") from None
         if not isinstance(v, kind) or (kind is not bool and isinstance(v, bool)):
-            raise InputError(f"{str(self.path)!r}: key '{where}{key}' has the wrong type "
+            raise InputError(f"{str(self.path)!r}: key {name!r} has the wrong type "
                              f"({type(v).__name__}: {v!r})")
         return v
 
@@ -158,6 +163,10 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
             if not all(isinstance(r, list) and len(r) == 3 for r in rows):
                 raise InputError(f"{str(path)!r}: tuning.bounds entries must be "
                                  f"[lower, upper, log_scale]")
+            for n, r in zip(names, rows, strict=True):
+                b = rd.floats({"lower": r[0], "upper": r[1]}, f"tuning.bounds.{n}.")
+                r[0], r[1] = b["lower"], b["upper"]
+                rd.get({"log_scale": r[2]}, "log_scale", bool, f"tuning.bounds.{n}.")
             bounds = GainBounds(names=names, lower=tuple(float(r[0]) for r in rows),
                                 upper=tuple(float(r[1]) for r in rows),
                                 log_scale=tuple(bool(r[2]) for r in rows))
@@ -215,14 +224,15 @@ class GainsFile:
 
 
 def _load_toml(path: Path) -> dict[str, Any]:
+    """The parsed TOML of a gains file, read as strict UTF-8 (:func:`fuzzyservo._io.read_text`:
+    a bad byte is reported with its offset)."""
+    if path.is_dir():
+        raise InputError(f"gains file {str(path)!r} is a directory; give a gains file (.toml)")
+    text = read_text(path, "gains file")
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except IsADirectoryError:
-        raise InputError(f"gains file {str(path)!r} is a directory") from None
-    except OSError as exc:
-        raise InputError(f"cannot read gains file {str(path)!r}: {exc.strerror}") from exc
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise InputError(f"{str(path)!r} is not valid TOML: {exc}") from exc
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{str(path)!r} is not valid TOML: {exc}") from None
 
 
 def read_gains_file(path: str | Path) -> GainsFile:
