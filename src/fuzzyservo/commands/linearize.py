@@ -5,17 +5,17 @@ Linearises the nonlinear model around its trimmed equilibrium (numerical Jacobia
 their units; ``--json`` prints one object with the keys ``omega_0``, ``damping``, ``K_o``,
 ``omega_v``, ``zeta_v``, ``tau_v``, ``velocity_gain``, ``eigenvalues`` (``[re, im]`` pairs)
 plus ``position``, ``trim_command``, ``p_f``, ``p_n`` and ``omega_0_range`` (min and max of ω₀
-over 5-95 % of the stroke).
+over 5-95 % of the stroke), as strict JSON (RFC 8259: NaN and infinities written as ``null``).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 from typing import Any
 
 import numpy as np
 
+from .._io import strict_json
 from ..errors import ParameterError
 from ..plant import ServoParams, linearize
 from ._plantargs import add_plant_arguments, params_from_args
@@ -39,7 +39,8 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("--position", type=float, default=0.5, metavar="FRACTION",
                         help="piston position as a fraction of the stroke (default 0.5)")
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--json", action="store_true",
+                        help="print one strict JSON object (NaN and infinities as null)")
     add_plant_arguments(parser)
     parser.set_defaults(handler=run)
 
@@ -74,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     s = summary(params, args.position)
     if args.json:
-        print(json.dumps(s))
+        print(strict_json(s))
         return 0
     lo, hi = s["omega_0_range"]
     lines = [

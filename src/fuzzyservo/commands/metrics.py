@@ -4,17 +4,17 @@ Reads the CSV that ``fuzzyservo simulate`` writes (a header row naming the colum
 u, alpha`` first, lines starting with ``#`` ignored), computes
 :func:`fuzzyservo.analysis.step_metrics` with the reference ``r``, the command ``u``, the
 target ``r[-1]`` and the initial value ``y[0]``, and prints one metric per line or, with
-``--json``, one JSON object (NaN written as ``null``).
+``--json``, one strict JSON object (RFC 8259): NaN and infinities are written as ``null``
+(Python's ``NaN``/``Infinity`` tokens are rejected by strict parsers).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import math
 from pathlib import Path
 from typing import Any
 
+from .._io import strict_json
 from ..analysis.step_metrics import step_metrics
 from ..files import read_run_csv
 
@@ -58,7 +58,9 @@ def register(subparsers: Any) -> None:
         ),
     )
     parser.add_argument("csv", type=Path, help="run CSV with columns t, r, y, u")
-    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--json", action="store_true",
+                        help="print one strict JSON object; a metric that is NaN or infinite "
+                             "(e.g. the IAE of a run at ±1e308) is null")
     parser.set_defaults(handler=run)
 
 
@@ -74,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     run_data = read_run_csv(args.csv, REQUIRED_COLUMNS)
     metrics = step_metrics(run_data).as_dict()
     if args.json:
-        print(json.dumps({k: (None if math.isnan(v) else v) for k, v in metrics.items()}))
+        print(strict_json(metrics))
     else:
         print_metrics(metrics)
     return 0

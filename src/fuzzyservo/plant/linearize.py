@@ -116,11 +116,21 @@ def trim(params: ServoParams, position: float) -> Trim:
                         args=(position, p, ps), method="hybr", options={"xtol": 1e-13})
     res = _trim_residual(sol.x, position, p, ps)
     u = float(sol.x[0])
-    if not sol.success and float(np.max(np.abs(res))) > 1e-9 or abs(u) > 1.0:
+    where = (f"no equilibrium at position {position!r} m with external force "
+             f"{params.load.external_force!r} N")
+    if not sol.success and float(np.max(np.abs(res))) > 1e-9:
+        reason = " ".join(str(sol.message).split())
+        hold = ps * max(c.piston_area, c.ring_area)
+        raise ParameterError(f"{where}: the root finder found no pressures that balance it "
+                             f"(it stopped: {reason}); the supply holds at most about "
+                             f"{hold:.4g} N (supply.pressure x piston area)")
+    if abs(u) > 1.0:
         raise ParameterError(
-            f"no equilibrium at position {position!r} m with external force "
-            f"{params.load.external_force!r} N (solver: {sol.message})"
-        )
+            f"{where}: holding the piston needs a valve command of {u:.4g}, outside the "
+            f"valve's range [-1, 1]; the leakage (valve.null_leakage "
+            f"{params.valve.null_leakage!r} m³/(s·Pa), cylinder.internal_leakage "
+            f"{params.cylinder.internal_leakage!r} m³/(s·Pa)) or the load is too large for "
+            f"the valve")
     if not leaky:
         u = 0.0
     x = np.zeros(N_STATE)
