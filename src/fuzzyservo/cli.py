@@ -101,7 +101,7 @@ class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors exit with status 2 on one line."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -18,7 +18,6 @@ import pytest
 import fuzzyservo.analysis.autotune as autotune
 import fuzzyservo.commands.linearize as linearize_cmd
 import fuzzyservo.commands.tune as tune_cmd
-import fuzzyservo.sim.open_loop as open_loop
 from fuzzyservo.analysis.autotune import MAX_MAXITER, MAX_POPSIZE, Checkpoint
 from fuzzyservo.cli import main
 from fuzzyservo.errors import ParameterError
@@ -195,17 +194,17 @@ def test_row11_truncated_checkpoint(tmp_path: Path, capsys: pytest.CaptureFixtur
 # ---------------------------------------------------- row 12: solve_ivp has a step limit
 
 def test_row12_solve_ivp_stops_at_its_limit(tmp_path: Path,
-                                            capsys: pytest.CaptureFixture[str],
-                                            monkeypatch: pytest.MonkeyPatch) -> None:
+                                            capsys: pytest.CaptureFixture[str]) -> None:
     """The pathological run of the issue (1 ms of it needs ~1e9 evaluations) stops at the
-    limit with advice; the default limit (1e6, MAX_RHS_EVALUATIONS) is lowered here so the test
-    takes a fraction of a second (with the default it stops after ~10 s, measured)."""
-    monkeypatch.setattr(open_loop, "MAX_RHS_EVALUATIONS", 20_000)
+    limit with advice; the default limit (1e6, MAX_RHS_EVALUATIONS) is lowered here with
+    --max-evaluations so the test takes a fraction of a second (with the default it stops
+    after ~10 s, measured)."""
     out = _keep(tmp_path / "x.csv")
     err = _error(["simulate", "--open-loop", "--command", "0.5", "--param", "load.mass=1e-6",
-                  "--method", "solve_ivp", "--duration", "1", "--out", str(out)], capsys)
+                  "--method", "solve_ivp", "--duration", "1", "--max-evaluations", "20000",
+                  "--out", str(out)], capsys)
     assert "after 20000 right-hand-side evaluations, its limit (max_rhs_evals)" in err
-    assert "--method rk4" in err and "of 1 s" in err
+    assert "--method rk4" in err and "of 1 s" in err and "--max-evaluations" in err
     assert out.read_bytes() == OLD
 
 

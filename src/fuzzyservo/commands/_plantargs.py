@@ -47,7 +47,7 @@ def parse_param(text: str) -> tuple[str, float]:
     """
     name, sep, value = text.partition("=")
     name = name.strip()
-    if not sep or not name:
+    if not sep or not name or not all(part.isidentifier() for part in name.split(".")):
         raise ParameterError(f"--param expects GROUP.FIELD=VALUE, got {text!r}")
     try:
         number = float(value)

@@ -34,6 +34,7 @@ from ..plant import ServoParams, with_overrides
 from ..plots.runs import FIGURE_FORMATS, runs_figure, save_figure
 from ..registry import DEFAULT_SUBSTEP, build_plant, controller_kind
 from ..sim import parse_reference, simulate, simulate_open_loop
+from ..sim.open_loop import MAX_RHS_EVALUATIONS
 from ._plantargs import add_plant_arguments, params_from_args, params_given
 from ._runargs import (
     add_controller_arguments,
@@ -41,6 +42,7 @@ from ._runargs import (
     add_plant_choice,
     controller_from_args,
     delay_from_args,
+    simulated_time_progress,
 )
 from .metrics import print_metrics
 
@@ -99,6 +101,9 @@ def register(subparsers: Any) -> None:
     ol.add_argument("--method", choices=("rk4", "solve_ivp"), default="rk4",
                     help="open loop on the nonlinear plant: the compiled loop (default) or "
                          "scipy's solve_ivp (DOP853), the reference")
+    ol.add_argument("--max-evaluations", type=int, default=MAX_RHS_EVALUATIONS, metavar="N",
+                    help=f"solve_ivp: stop with an error after N evaluations of the model "
+                         f"(default {MAX_RHS_EVALUATIONS:g}; a stiff model can need millions)")
     add_plant_arguments(parser)
     parser.set_defaults(handler=run)
 
@@ -233,8 +238,14 @@ def run(args: argparse.Namespace) -> int:
         run_ = _settings(args, None, ts, "")
         plant = build_plant(run_.plant, run_.params, run_.start * run_.params.cylinder.stroke,
                             substep=args.substep)
-        result: Any = simulate_open_loop(plant, args.command, duration=run_.duration, dt=ts,
-                                         delay=run_.delay, method=args.method)
+        if args.max_evaluations < 1:
+            raise ParameterError(f"--max-evaluations must be a positive integer, got "
+                                 f"{args.max_evaluations}")
+        with simulated_time_progress("solve_ivp",
+                                     enabled=args.method == "solve_ivp") as progress:
+            result: Any = simulate_open_loop(
+                plant, args.command, duration=run_.duration, dt=ts, delay=run_.delay,
+                method=args.method, progress=progress, max_rhs_evals=args.max_evaluations)
         title = f"open loop, u = {args.command:g}, {run_.plant} plant"
     else:
         if args.command is not None:

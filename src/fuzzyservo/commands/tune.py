@@ -161,10 +161,11 @@ def run(args: argparse.Namespace) -> int:
         tuned = tune_controller(setup, params, progress=progress, resume=resume)
     except KeyboardInterrupt:
         progress.close()
-        if progress.latest is not None:
-            save_checkpoint(ckpt_file, progress.latest)
-            print(f"fuzzyservo: interrupted; population saved to {ckpt_file} "
-                  f"(continue with --resume)", file=sys.stderr)
+        if progress.latest is None:  # nothing to save yet: the CLI's one line says so
+            raise
+        save_checkpoint(ckpt_file, progress.latest)
+        print(f"fuzzyservo: interrupted; population saved to {ckpt_file} "
+              f"(continue with --resume)", file=sys.stderr)
         return 130
     progress.close()
     write_gains_toml(out, tuned)

@@ -318,7 +318,12 @@ def with_overrides(params: ServoParams, overrides: Mapping[str, Any]) -> ServoPa
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ParameterError(f"parameter {name} must be a number, got {value!r}")
         group, field_name = name.split(".", 1)
-        by_group.setdefault(group, {})[field_name] = float(value)
+        try:
+            number = float(value)
+        except OverflowError:
+            raise ParameterError(f"parameter {name} is too large for a float, got "
+                                 f"{value!r:.40}") from None
+        by_group.setdefault(group, {})[field_name] = number
     new_groups = {g: replace(getattr(params, g), **kw) for g, kw in by_group.items()}
     return replace(params, **new_groups)
 

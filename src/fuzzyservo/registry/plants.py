@@ -74,7 +74,7 @@ class PlantKind:
 def _linear(params: ServoParams, position: float, substep: float) -> Plant:
     del substep
     servo = LinearServo.from_params(params, linearize(params, position))
-    return LinearPlant.from_servo(servo, position)
+    return LinearPlant.from_servo(servo, position, stroke=params.cylinder.stroke)
 
 
 def _small_signal(params: ServoParams, position: float, substep: float) -> Plant:
