@@ -328,6 +328,7 @@ def test_param_overrides_raise_only_own_errors(text: str) -> None:
 @example(data=PARAM_FILES[1].encode("utf-16"))  # issue 9 row 8: a UTF-16 BOM
 @example(data=b"\x80\xff\x00[load]")  # row 8: not text
 @example(data=b"[load]\nmass = 1" + b"0" * 400)  # an integer no float holds
+@example(data=b"[load]\nmass = " + b"9" * 5000)  # tomllib: a plain ValueError beyond 4300 digits
 def test_parameter_files_raise_only_own_errors(data: bytes, tmp_path: Path) -> None:
     path = tmp_path / "params.toml"
     path.write_bytes(data)
@@ -337,6 +338,7 @@ def test_parameter_files_raise_only_own_errors(data: bytes, tmp_path: Path) -> N
 @settings(max_examples=150, **CHEAP)
 @given(data=file_bytes(GAINS_FILES + HAND_GAINS_FILES))
 @example(data=b'controller = "p"\n[gains]\nkp = 1' + b"0" * 400)  # no float holds it
+@example(data=b'controller = "p"\n[gains]\nkp = ' + b"9" * 5000)  # tomllib: ValueError
 def test_gains_files_raise_only_own_errors(data: bytes, tmp_path: Path) -> None:
     path = tmp_path / "gains.toml"
     path.write_bytes(data)
