@@ -231,8 +231,9 @@ def _load_toml(path: Path) -> dict[str, Any]:
     text = read_text(path, "gains file")
     try:
         return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{str(path)!r} is not valid TOML: {exc}") from None
+    except ValueError as exc:  # TOMLDecodeError, or an integer of > 4300 digits
+        why = " ".join(str(exc).split())[:200]
+        raise InputError(f"{str(path)!r} is not valid TOML: {why}") from None
 
 
 def read_gains_file(path: str | Path) -> GainsFile:

@@ -344,8 +344,9 @@ def read_overrides_toml(path: str | Path) -> dict[str, float]:
     text = read_text(path, "parameter file")
     try:
         data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"parameter file {str(path)!r} is not valid TOML: {exc}") from None
+    except ValueError as exc:  # TOMLDecodeError, or an integer of > 4300 digits
+        why = " ".join(str(exc).split())[:200]
+        raise InputError(f"parameter file {str(path)!r} is not valid TOML: {why}") from None
     flat: dict[str, Any] = {}
     for group, table in data.items():
         if group not in GROUPS or not isinstance(table, dict):
