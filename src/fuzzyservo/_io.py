@@ -20,7 +20,9 @@ import hashlib
 import json
 import math
 import os
+import signal
 import tempfile
+import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any, Literal, overload
@@ -28,14 +30,39 @@ from typing import IO, Any, Literal, overload
 from .errors import InputError, OutputError
 
 __all__ = [
+    "Terminated",
     "atomic_write",
     "check_output_path",
     "read_text",
     "sha256_file",
     "strict_json",
+    "terminate_gracefully",
     "write_bytes_atomic",
     "write_text_atomic",
 ]
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received while a file was being written, raised so the write is rolled back."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+_GRACEFUL = {"sigterm": False}
+
+
+def terminate_gracefully(enabled: bool) -> None:
+    """While ``enabled``, SIGTERM during an :func:`atomic_write` raises :class:`Terminated`
+    (the write is rolled back) instead of ending the process at once. The CLI enables it; at
+    any other moment SIGTERM keeps its default action, which also works while a compiled loop
+    runs (a Python handler would wait for the loop to end)."""
+    _GRACEFUL["sigterm"] = enabled
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated(signum)
 
 
 def _describe(exc: OSError) -> str:
@@ -110,6 +137,19 @@ def atomic_write(path: str | Path, *, binary: bool = False) -> contextlib.Abstra
 
 @contextlib.contextmanager
 def _atomic(target: Path, binary: bool) -> Iterator[IO[Any]]:
+    previous: Any = None
+    if _GRACEFUL["sigterm"] and threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        with _atomic_file(target, binary) as fh:
+            yield fh
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def _atomic_file(target: Path, binary: bool) -> Iterator[IO[Any]]:
     folder = target.parent if str(target.parent) else Path(".")
     try:
         fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{target.name}.", suffix=".tmp")

@@ -7,9 +7,11 @@ and give exit status 2, without a traceback. A reader that closes the pipe early
 (``fuzzyservo linearize | head -1``) ends the command quietly with status 141, the status of a
 process ended by SIGPIPE, as other command-line tools do.
 
-Interruptions end on one line too: Ctrl-C (SIGINT) with status 130 and SIGTERM with 143
-(128 + the signal), at any point including start-up; every file being written at that moment
-is left as it was (``fuzzyservo._io.atomic_write``). numpy floating-point warnings are not
+Interruptions end on one line too: Ctrl-C (SIGINT) with status 130, at any point including
+start-up, and SIGTERM during a write with 143 (128 + the signal); every file being written at
+that moment is left as it was (``fuzzyservo._io.atomic_write``). SIGTERM at any other moment
+keeps its default action and ends the process at once (a Python handler would wait for a
+compiled loop to finish). numpy floating-point warnings are not
 printed: a run that goes non-finite is reported by the simulator as an error of its own. An
 error of ours raised inside a library that wraps it (scipy's optimiser, the integrator) is
 found in the exception's chain and printed as itself.
@@ -18,6 +20,7 @@ found in the exception's chain and printed as itself.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import signal
@@ -25,10 +28,10 @@ import sys
 import threading
 import warnings
 from collections.abc import Iterator, Sequence
-from types import FrameType
 from typing import Any
 
 from . import __version__
+from ._io import Terminated, terminate_gracefully
 from .errors import FuzzyServoError
 
 #: Subcommand modules, in the order ``--help`` lists them.
@@ -49,18 +52,6 @@ EXIT_PIPE = 141
 EXIT_INTERRUPT = 130
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised as an exception so that writes in progress are rolled back."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signum)
-        self.signum = signum
-
-
-def _on_sigterm(signum: int, frame: FrameType | None) -> None:
-    raise Terminated(signum)
-
-
 def _unraisable(previous: Any) -> Any:
     """A ``sys.unraisablehook`` that re-raises an interruption swallowed by a finalizer.
 
@@ -70,12 +61,25 @@ def _unraisable(previous: Any) -> Any:
     def hook(unraisable: Any) -> None:
         exc = unraisable.exc_value
         if isinstance(exc, KeyboardInterrupt):
-            signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
-            # sent from another thread, it is handled once this hook has returned
-            threading.Timer(0.005, os.kill, (os.getpid(), signum)).start()
+            if _STOP["handled"]:
+                return
+            timer = _STOP["timer"]
+            if timer is None or not timer.is_alive():  # one signal again, not one per swallow
+                signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
+                # sent from another thread, it is handled once this hook has returned
+                _STOP["timer"] = threading.Timer(0.005, _resend, (signum,))
+                _STOP["timer"].start()
             return
         previous(unraisable)
     return hook
+
+
+_STOP: dict[str, Any] = {"handled": False, "timer": None}
+
+
+def _resend(signum: int) -> None:
+    if not _STOP["handled"]:
+        os.kill(os.getpid(), signum)
 
 
 def _chain(exc: BaseException) -> Iterator[BaseException]:
@@ -119,11 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (default: ``sys.argv[1:]``) and return the exit status."""
-    previous = None
-    try:
-        previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    except ValueError:  # not the main thread: leave SIGTERM alone
-        pass
+    terminate_gracefully(True)
+    _STOP.update(handled=False, timer=None)
     hook = sys.unraisablehook
     sys.unraisablehook = _unraisable(hook)
     try:
@@ -134,6 +135,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             with np.errstate(all="ignore"):
                 return _run(argv)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM at any point, start-up included
+        _STOP["handled"] = True
+        if _STOP["timer"] is not None:
+            _STOP["timer"].cancel()
         if isinstance(exc, Terminated):
             print("fuzzyservo: terminated; files being written were left as they were",
                   file=sys.stderr)
@@ -143,12 +147,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_INTERRUPT
     finally:
         sys.unraisablehook = hook
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        terminate_gracefully(False)
+
+
+def _numba_cache_best_effort() -> None:
+    """Make a failure to *save* numba's on-disk cache of compiled kernels harmless.
+
+    numba saves a kernel's machine code beside the source on its first call. Under a file-size
+    limit, on a full disk or a read-only install that write fails with an OSError that ends
+    the run with a traceback, although the kernel is compiled and the cache is only a speed-up
+    for the next run. The CLI ignores such failures (the next run compiles again)."""
+    from numba.core import caching
+
+    if getattr(caching.Cache, "_fuzzyservo_best_effort", False):
+        return
+    save: Any = caching.Cache.save_overload
+
+    def save_overload(self: Any, sig: Any, data: Any) -> None:
+        with contextlib.suppress(OSError):
+            save(self, sig, data)
+
+    caching.Cache.save_overload = save_overload  # type: ignore[method-assign]
+    caching.Cache._fuzzyservo_best_effort = True  # type: ignore[attr-defined]
 
 
 def _run(argv: Sequence[str] | None) -> int:
     try:
+        _numba_cache_best_effort()
         parser = build_parser()
         args = parser.parse_args(argv)
         status: int = args.handler(args)
@@ -171,3 +196,14 @@ def _run(argv: Sequence[str] | None) -> int:
             raise
         return _error(str(ours))
     return status
+
+
+def console() -> None:
+    """Entry point of the ``fuzzyservo`` script and ``python -m fuzzyservo``: :func:`main`,
+    then exit with its status. After an interruption a second Ctrl-C is ignored, so that it
+    cannot turn the status 130 into a kill during the interpreter's shutdown."""
+    status = main()
+    if status in (EXIT_INTERRUPT, 128 + signal.SIGTERM):
+        with contextlib.suppress(ValueError):
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+    sys.exit(status)

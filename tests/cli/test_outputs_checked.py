@@ -136,3 +136,16 @@ def test_a_bug_still_shows_its_traceback(monkeypatch: pytest.MonkeyPatch) -> Non
     monkeypatch.setattr(cli, "build_parser", lambda: _handler_raising(ZeroDivisionError()))
     with pytest.raises(ZeroDivisionError):
         main([])
+
+
+@pytest.mark.parametrize("extra", [[], ["--open-loop", "--command", "0.1"]])
+def test_a_substep_that_would_run_for_hours_is_refused(
+        extra: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--substep 1e-12`` asked for 1e10 RK4 steps in a compiled loop that neither Ctrl-C
+    nor a Python SIGTERM handler can stop (found by the fuzz script)."""
+    argv = ["simulate", "--plant", "nonlinear", "--substep", "1e-12", "--duration", "0.01",
+            "--out", str(tmp_path / "x.csv"), *extra]
+    if not extra:
+        argv += ["--controller", "p", "--gains", "kp=10"]
+    assert main(argv) == 2
+    _one_line(capsys, "1.1e+10 RK4 steps", "at most 1e+08")

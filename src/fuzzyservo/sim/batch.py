@@ -304,7 +304,7 @@ def simulate_batch(
         split = [split_delay(float(dv), ts) for dv in delays]
         ds = np.array([s[0] for s in split], dtype=np.int64)
         fs = np.array([s[1] for s in split])
-        n_subs = np.array([p.n_sub(ts) for p in nl], dtype=np.int64)
+        n_subs = np.array([p.check_steps(ts, t.size) for p in nl], dtype=np.int64)
         _batch_nonlinear(controller.kind, cps, cs0, *tabs, pps, x0s, y0s, u0s, ds, fs, n_subs, ts,
                          t, roff, noise, force, keep, y_tr, u_tr, a_tr, mopts, metrics, bad,
                          chunks)
