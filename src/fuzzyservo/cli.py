@@ -200,10 +200,17 @@ def _run(argv: Sequence[str] | None) -> int:
 
 def console() -> None:
     """Entry point of the ``fuzzyservo`` script and ``python -m fuzzyservo``: :func:`main`,
-    then exit with its status. After an interruption a second Ctrl-C is ignored, so that it
-    cannot turn the status 130 into a kill during the interpreter's shutdown."""
+    then exit with its status.
+
+    After an interruption the process ends at once (``os._exit``, once stdout and stderr are
+    flushed; every file is complete or rolled back by then). A normal exit would run the
+    interpreter's shutdown, where Python ends the process by SIGINT itself (status -2 instead
+    of 130) when a KeyboardInterrupt passed through code run by a C extension, even one that
+    was caught, and where a second Ctrl-C would do the same."""
     status = main()
     if status in (EXIT_INTERRUPT, 128 + signal.SIGTERM):
-        with contextlib.suppress(ValueError):
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(status)
     sys.exit(status)

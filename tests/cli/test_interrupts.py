@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers import start_fuzzyservo, wait_for_temporary
+
 FUZZYSERVO = [sys.executable, "-m", "fuzzyservo"]
 
 #: A run whose CSV (100 001 rows, 14 MB) takes about 0.7 s to write.
@@ -26,15 +28,8 @@ SHORT = ["simulate", "--controller", "pid", "--gains", "kp=20,ki=2,kd=0.1", "--p
          "linear", "--duration", "2"]
 
 
-def _default_sigint() -> None:
-    """A child that reacts to Ctrl-C as in a terminal: background jobs and pytest-xdist's
-    workers ignore SIGINT, and a child inherits that."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def _start(argv: Sequence[str], cwd: Path) -> subprocess.Popen[str]:
-    return subprocess.Popen([*FUZZYSERVO, *argv], cwd=cwd, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint)
+    return start_fuzzyservo(argv, cwd)
 
 
 def _digest(p: Path) -> str:
@@ -91,12 +86,7 @@ def test_a_file_size_limit_leaves_the_old_gains_file_byte_identical(tmp_path: Pa
 
 
 def _wait_for_write(folder: Path, proc: subprocess.Popen[str]) -> bool:
-    """Wait until ``proc`` starts writing (its temporary file appears in ``folder``)."""
-    while proc.poll() is None:
-        if any(folder.glob(".keep.csv.*.tmp")):
-            return True
-        time.sleep(0.002)
-    return False
+    return wait_for_temporary(folder, ".keep.csv.*.tmp", proc)
 
 
 def _kill_and_check(sig: int, n: int, seed: int, tmp_path: Path) -> list[int]:

@@ -23,6 +23,7 @@ from fuzzyservo._io import sha256_file
 from fuzzyservo.cli import main
 from fuzzyservo.study.cache import CacheEntryError, load_study
 from fuzzyservo.study.runner import MANIFEST, default_gains_dir, folder_status
+from tests.helpers import start_fuzzyservo, wait_for_temporary
 
 MARKER = "/tmp/fuzzyservo-cache-ran-code"  # noqa: S108  (what the crafted pickle would create)
 
@@ -133,18 +134,6 @@ def test_a_crafted_cache_entry_runs_no_code_and_is_recomputed(
 BASE = ["reproduce", "--plant", "linear", "--duration", "5", "--quiet"]
 
 
-def _default_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_DFL)  # xdist workers ignore SIGINT
-
-
-def _writing(out: Path, proc: subprocess.Popen[str]) -> bool:
-    while proc.poll() is None:
-        if any(out.glob(".*.tmp")):
-            return True
-        time.sleep(0.002)
-    return False
-
-
 def _check_folder(out: Path) -> str:
     """The folder is a complete set, or is marked incomplete where reproduce and a reader of
     the report look; never a silent mix."""
@@ -179,10 +168,8 @@ def _kill_reproduce(sig: int, n: int, seed: int, tmp_path: Path) -> list[tuple[i
     rng = random.Random(seed)
     seen = []
     for i in range(n):
-        proc = subprocess.Popen([sys.executable, "-m", "fuzzyservo", *configs[i % 2]],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                preexec_fn=_default_sigint)
-        assert _writing(out, proc)
+        proc = start_fuzzyservo(configs[i % 2])
+        assert wait_for_temporary(out, ".*.tmp", proc)
         time.sleep(rng.uniform(0.0, 1.0) * write_time)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=300)
