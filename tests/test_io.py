@@ -179,3 +179,32 @@ def test_no_pickle_anywhere_in_the_package() -> None:
             if re.search(r"\b(import\s+(c?pickle|dill|shelve|marshal)|from\s+(c?pickle|dill|"
                          r"shelve|marshal)\s+import|allow_pickle\s*=\s*True)", line)]
     assert not hits, hits
+
+
+def test_a_symbolic_link_is_followed_and_kept(tmp_path: Path) -> None:
+    (tmp_path / "real").mkdir()
+    target = tmp_path / "real" / "data.csv"
+    target.write_text("old\n")
+    link = tmp_path / "link.csv"
+    link.symlink_to(target)
+    write_text_atomic(link, "new\n")
+    assert link.is_symlink() and target.read_text() == "new\n"
+    assert sorted(p.name for p in (tmp_path / "real").iterdir()) == ["data.csv"]
+
+
+def test_a_fifo_is_written_into_not_replaced(tmp_path: Path) -> None:
+    """Like /dev/null or /dev/stdout: a target that is not a regular file has nothing to keep
+    and must not be replaced by one (as root, --out /dev/null would have replaced the
+    device)."""
+    import threading
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_bytes()))
+    reader.start()
+    write_csv(fifo, ["t", "y"], [np.array([0.0, 0.001]), np.array([0.5, 0.25])])
+    reader.join(timeout=10)
+    assert got == [b"t,y\n0.0,0.5\n0.001,0.25\n"]
+    assert fifo.is_fifo()
+    assert check_output_path(fifo) == fifo

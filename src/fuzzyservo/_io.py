@@ -7,7 +7,8 @@ Guarantees (docs/guarantees.md):
   exception, a full disk, a file-size limit, Ctrl-C or SIGTERM (the CLI turns it into an
   exception) leaves the previous file byte-identical and removes the temporary file. Only
   SIGKILL can leave a temporary file behind; its name (``.NAME.XXXXXXXX.tmp``) never is the
-  target's.
+  target's. A symbolic link is followed (the file it points at is replaced, the link kept);
+  a target that is not a regular file (``/dev/null``, a FIFO) is written directly.
 - :func:`read_text` refuses bytes that are not UTF-8 with the file name and the byte offset.
 - :func:`strict_json` writes NaN and infinities as ``null``: strict JSON parsers reject the
   ``NaN``/``Infinity`` tokens Python's ``json`` emits by default.
@@ -17,12 +18,14 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import io
 import json
 import math
 import os
 import signal
 import tempfile
 import threading
+import zipfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import IO, Any, Literal, overload
@@ -33,6 +36,7 @@ __all__ = [
     "Terminated",
     "atomic_write",
     "check_output_path",
+    "npz_inflation",
     "read_text",
     "sha256_file",
     "strict_json",
@@ -82,7 +86,9 @@ def check_output_path(path: str | Path, *, option: str = "--out",
     p = Path(path)
     if p.is_dir():
         raise InputError(f"{option} {str(p)!r} is a folder; give a file name")
-    parent = p.parent if str(p.parent) else Path(".")
+    if p.exists() and not p.is_file():  # /dev/null, a FIFO: written directly
+        return p
+    parent = Path(os.path.realpath(p)).parent
     if not parent.is_dir():
         raise InputError(f"{option} {str(p)!r}: folder {str(parent)!r} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
@@ -149,12 +155,32 @@ def _atomic(target: Path, binary: bool) -> Iterator[IO[Any]]:
 
 
 @contextlib.contextmanager
+def _direct(target: Path, binary: bool) -> Iterator[IO[Any]]:
+    """Write straight into a target that is not a regular file (``/dev/null``, a FIFO, a
+    terminal): there is no previous content to keep, and replacing it would be wrong."""
+    try:
+        fh: IO[Any] = (target.open("wb") if binary
+                       else target.open("w", encoding="utf-8", newline=""))
+        with fh:
+            yield fh
+    except OSError as exc:
+        raise OutputError(f"cannot write {str(target)!r}: {_describe(exc)}") from None
+
+
+@contextlib.contextmanager
 def _atomic_file(target: Path, binary: bool) -> Iterator[IO[Any]]:
-    folder = target.parent if str(target.parent) else Path(".")
+    shown = target  # the name the caller gave, for messages
+    real = Path(os.path.realpath(target))  # a symbolic link keeps pointing at the new file
+    if real.exists() and not real.is_file():
+        with _direct(real, binary) as out:
+            yield out
+        return
+    target = real
+    folder = target.parent
     try:
         fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{target.name}.", suffix=".tmp")
     except OSError as exc:
-        raise OutputError(f"cannot write {str(target)!r}: {_describe(exc)}") from None
+        raise OutputError(f"cannot write {str(shown)!r}: {_describe(exc)}") from None
     tmp = Path(tmp_name)
     done = False
     try:
@@ -177,7 +203,7 @@ def _atomic_file(target: Path, binary: bool) -> Iterator[IO[Any]]:
             finally:
                 os.close(dfd)
     except OSError as exc:
-        raise OutputError(f"cannot write {str(target)!r}: {_describe(exc)}; "
+        raise OutputError(f"cannot write {str(shown)!r}: {_describe(exc)}; "
                           f"the previous file, if any, is unchanged") from None
     finally:
         if not done:
@@ -255,3 +281,23 @@ def sha256_file(path: str | Path) -> str:
         for chunk in iter(lambda: fh.read(1 << 20), b""):
             h.update(chunk)
     return h.hexdigest()
+
+
+def npz_inflation(source: str | Path | bytes) -> str | None:
+    """Why an ``.npz`` archive must not be loaded, or None.
+
+    fuzzyservo writes its archives with ``np.savez`` (members stored, not compressed), so
+    their arrays are never larger than the file. A crafted archive of a few MB whose members
+    are compressed could unpack into gigabytes before any check of ours runs; it is refused
+    here, from the archive's directory alone."""
+    size = len(source) if isinstance(source, bytes) else Path(source).stat().st_size
+    try:
+        with zipfile.ZipFile(io.BytesIO(source) if isinstance(source, bytes) else source) as zf:
+            members = zf.infolist()
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
+        return f"not an .npz archive ({type(exc).__name__})"
+    if any(m.compress_type != zipfile.ZIP_STORED for m in members):
+        return "compressed members (fuzzyservo stores its arrays uncompressed)"
+    if sum(m.file_size for m in members) > size:
+        return "its members claim more bytes than the file holds"
+    return None

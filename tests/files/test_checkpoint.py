@@ -48,3 +48,20 @@ def test_truncated_checkpoint_is_one_line_naming_the_way_out(tmp_path: Path, kee
     with pytest.raises(InputError, match="delete it or run without --resume") as info:
         load_checkpoint(path)
     assert "g.toml.partial.npz" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_checkpoint_that_would_inflate_or_holds_objects_is_refused(tmp_path: Path) -> None:
+    """np.savez stores members uncompressed; a compressed member is a crafted file that could
+    unpack into gigabytes, and an object array would need pickle."""
+    bomb = tmp_path / "bomb.npz"
+    with bomb.open("wb") as fh:
+        np.savez_compressed(fh, population=np.zeros((2500, 3000)), header=np.array("{}"))
+    with pytest.raises(InputError, match="compressed members"):
+        load_checkpoint(bomb)
+    objects = tmp_path / "objects.npz"
+    with objects.open("wb") as fh:
+        np.savez(fh, population=np.array([object()], dtype=object), header=np.array("{}"))
+    with pytest.raises(InputError) as err:
+        load_checkpoint(objects)
+    assert "pickled objects, which fuzzyservo never loads" in str(err.value)
+    assert "allow_pickle" not in str(err.value)

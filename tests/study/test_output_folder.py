@@ -88,7 +88,7 @@ def test_unusable_cache_entries_are_refused_with_the_reason(reproduced: Path,
         return str(err.value)
 
     bad.write_bytes(path.read_bytes()[:800])
-    assert "unreadable" in reason()  # row 11's twin: truncated
+    assert "not an .npz archive" in reason()  # row 11's twin: truncated
     bad.write_bytes(b"\x00garbage" * 100)
     assert "not an .npz archive" in reason()
     bad.write_bytes(pickle.dumps(_Hostile()))
@@ -107,6 +107,9 @@ def test_unusable_cache_entries_are_refused_with_the_reason(reproduced: Path,
     assert "shape" in reason()
     _rewrite(path, bad, meta=np.array("{]"))
     assert "malformed" in reason()
+    with bad.open("wb") as fh:  # a 60 kB archive that would unpack into 60 MB
+        np.savez_compressed(fh, meta=np.array("{}"), bomb=np.zeros(7_500_000))
+    assert bad.stat().st_size < 200_000 and "compressed members" in reason()
 
 
 def test_a_crafted_cache_entry_runs_no_code_and_is_recomputed(

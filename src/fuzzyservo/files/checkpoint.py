@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_write
+from .._io import atomic_write, npz_inflation
 from ..analysis.autotune import Checkpoint
 from ..errors import InputError
 
@@ -57,6 +57,11 @@ def load_checkpoint(path: str | Path) -> Checkpoint:
         missing = isinstance(exc, FileNotFoundError)
         raise InputError(f"cannot read checkpoint {str(path)!r}: {exc.strerror or exc}; "
                          f"{'' if missing else 'delete it or '}run without --resume") from None
+    inflated = npz_inflation(data)
+    if inflated is not None:
+        raise InputError(f"checkpoint {str(path)!r} is unreadable, truncated or not a tuning "
+                         f"checkpoint ({len(data)} bytes; {inflated}); delete it or run "
+                         f"without --resume")
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as z:
             pop = np.asarray(z["population"], dtype=np.float64)
@@ -70,6 +75,8 @@ def load_checkpoint(path: str | Path) -> Checkpoint:
     except (OSError, EOFError, ValueError, KeyError, TypeError, AttributeError,
             zipfile.BadZipFile, zlib.error, struct.error) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
+        if "pickle" in reason:  # numpy's text would advise loading it unsafely
+            reason = "it holds pickled objects, which fuzzyservo never loads"
         raise InputError(f"checkpoint {str(path)!r} is unreadable, truncated or not a "
                          f"tuning checkpoint ({len(data)} bytes; {reason}); delete it or run "
                          f"without --resume") from None

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .._io import atomic_write
+from .._io import atomic_write, npz_inflation
 from .._typing import FloatArray
 from ..sim import SimResult
 from .claims import Claim
@@ -117,6 +117,9 @@ def load_study(path: str | Path, *, key: str, version: str) -> PlantStudy:
         if magic != b"PK\x03\x04":
             raise CacheEntryError("not an .npz archive" + (
                 " (a pickle, which fuzzyservo never loads)" if magic[:1] == b"\x80" else ""))
+        inflated = npz_inflation(Path(path))
+        if inflated is not None:
+            raise CacheEntryError(inflated)
         with np.load(Path(path), allow_pickle=False) as z:
             if "meta" not in z.files:
                 raise CacheEntryError("no 'meta' entry (not a fuzzyservo cache entry)")
@@ -160,6 +163,8 @@ def load_study(path: str | Path, *, key: str, version: str) -> PlantStudy:
         raise
     except FileNotFoundError:
         raise CacheEntryError("missing") from None
+    except MemoryError:
+        raise CacheEntryError("its arrays do not fit in memory") from None
     except (OSError, EOFError, zipfile.BadZipFile) as exc:
         raise CacheEntryError(f"unreadable ({type(exc).__name__}: truncated or not an "
                               f".npz archive)") from None
