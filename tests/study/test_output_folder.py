@@ -132,6 +132,24 @@ def test_a_crafted_cache_entry_runs_no_code_and_is_recomputed(
     assert not any(p.startswith("traces/nonlinear") for p in _visible(out))  # no mix
 
 
+def test_a_second_reproduce_on_the_same_folder_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Two runs on one folder deleted each other's temporary files and interleaved their
+    outputs (found in review); the folder's lock refuses the second, before any work."""
+    import fcntl
+
+    out = tmp_path / "rp"
+    out.mkdir()
+    with (out / ".lock").open("a+") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        held.write("12345\n")
+        held.flush()
+        assert main(["reproduce", "--out", str(out), "--plant", "linear", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "another fuzzyservo reproduce (pid 12345)" in err
+    assert sorted(p.name for p in out.iterdir()) == [".lock"]  # nothing else touched
+
+
 # --- killed at random points ---------------------------------------------------------------
 
 BASE = ["reproduce", "--plant", "linear", "--duration", "5", "--quiet"]

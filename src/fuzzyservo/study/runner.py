@@ -18,12 +18,15 @@ folder never mixes two runs.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as _dt
+import fcntl
 import hashlib
 import json
+import os
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -235,16 +238,51 @@ def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
     ``warn(message)`` receives one-line warnings (a cache entry ignored, a folder left
     incomplete by an earlier run); by default they are issued as :class:`CacheWarning`.
     """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {str(out)!r} exists and is not a directory")
+    if gains_dir is not None and not retune_gains and not Path(gains_dir).is_dir():
+        raise InputError(f"--gains-dir {str(gains_dir)!r} is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    with _folder_lock(out):
+        return _reproduce(out, cfg, gains_dir=gains_dir, retune_gains=retune_gains,
+                          force=force, plants=plants, version=version, progress=progress,
+                          meta=meta, warn=warn)
+
+
+@contextlib.contextmanager
+def _folder_lock(out: Path) -> Iterator[None]:
+    """Hold ``OUT/.lock`` for the run: a second run on the same folder would delete the
+    first one's temporary files and interleave its outputs, so it is refused."""
+    with (out / ".lock").open("a+") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.seek(0)
+            who = fh.read().strip() or "?"
+            raise InputError(f"another fuzzyservo reproduce (pid {who}) is writing "
+                             f"{str(out)!r}; wait for it to finish or give another "
+                             f"--out") from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(f"{os.getpid()}\n")
+        fh.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_gains: bool,
+               force: bool, plants: Sequence[str], version: str,
+               progress: Callable[[str], None] | None, meta: Mapping[str, str] | None,
+               warn: Callable[[str], None] | None) -> dict[str, Path]:
     def say(message: str) -> None:
         if warn is not None:
             warn(message)
         else:
-            warnings.warn(message, CacheWarning, stacklevel=3)
+            warnings.warn(message, CacheWarning, stacklevel=4)
 
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {str(out)!r} exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
     _clean_temporaries(out)
     status, problems = folder_status(out)
     if status == "incomplete":
