@@ -2,6 +2,6 @@
 
 from __future__ import annotations
 
-from .cli import console
+from ._entry import run
 
-console()
+run()

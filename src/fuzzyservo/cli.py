@@ -31,6 +31,7 @@ from collections.abc import Iterator, Sequence
 from typing import Any
 
 from . import __version__
+from ._entry import INTERRUPTED
 from ._io import Terminated, terminate_gracefully
 from .errors import FuzzyServoError
 
@@ -142,8 +143,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print("fuzzyservo: terminated; files being written were left as they were",
                   file=sys.stderr)
             return 128 + exc.signum
-        print("fuzzyservo: interrupted; files being written were left as they were",
-              file=sys.stderr)
+        print(INTERRUPTED, file=sys.stderr)
         return EXIT_INTERRUPT
     finally:
         sys.unraisablehook = hook
@@ -189,7 +189,8 @@ def _run(argv: Sequence[str] | None) -> int:
     except FuzzyServoError as exc:
         return _error(str(exc))
     except MemoryError:
-        return _error("out of memory; shorten the run (--duration) or coarsen it (--ts)")
+        return _error("out of memory; ask for less: a shorter or coarser run, a smaller "
+                      "grid or population")
     except Exception as exc:  # a library wrapped one of our errors
         ours = _ours(exc)
         if ours is None:
@@ -197,21 +198,3 @@ def _run(argv: Sequence[str] | None) -> int:
         return _error(str(ours))
     return status
 
-
-def console() -> None:
-    """Entry point of the ``fuzzyservo`` script and ``python -m fuzzyservo``: :func:`main`,
-    then exit with its status.
-
-    After an interruption the process ends at once (``os._exit``, once stdout and stderr are
-    flushed; every file is complete or rolled back by then). Through the interpreter's normal
-    shutdown, a handled Ctrl-C sometimes still ended as killed by SIGINT (status -2 instead of
-    130; seen under load in tests/cli/test_interrupts.py, cause not pinned down: CPython
-    re-raises SIGINT at exit when it saw a KeyboardInterrupt escape code it ran), and a second
-    Ctrl-C there would do the same."""
-    status = main()
-    if status in (EXIT_INTERRUPT, 128 + signal.SIGTERM):
-        for stream in (sys.stdout, sys.stderr):
-            with contextlib.suppress(Exception):
-                stream.flush()
-        os._exit(status)
-    sys.exit(status)

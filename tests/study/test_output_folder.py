@@ -217,5 +217,5 @@ def test_reproduce_killed_by_sigkill_at_random_points(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_reproduce_interrupted_by_ctrl_c_at_random_points(tmp_path: Path) -> None:
     seen = _kill_reproduce(signal.SIGINT, 10, 8, tmp_path)
-    assert all(code in (0, 130, -signal.SIGINT) for code, _ in seen), seen
+    assert all(code in (0, 130) for code, _ in seen), seen
     assert sum(code == 130 for code, _ in seen) >= 7, seen
