@@ -88,11 +88,12 @@ def check_output_path(path: str | Path, *, option: str = "--out",
         raise InputError(f"{option} {str(p)!r} is a folder; give a file name")
     if p.exists() and not p.is_file():  # /dev/null, a FIFO: written directly
         return p
-    parent = Path(os.path.realpath(p)).parent
+    parent = Path(os.path.realpath(p)).parent  # where the file really goes (links followed)
+    shown = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
-        raise InputError(f"{option} {str(p)!r}: folder {str(parent)!r} does not exist")
+        raise InputError(f"{option} {str(p)!r}: folder {str(shown)!r} does not exist")
     if not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError(f"{option} {str(p)!r}: folder {str(parent)!r} is not writable")
+        raise InputError(f"{option} {str(p)!r}: folder {str(shown)!r} is not writable")
     if p.exists() and not os.access(p, os.W_OK) and not os.access(parent, os.W_OK):
         raise InputError(f"{option} {str(p)!r} is not writable")
     for src in inputs:

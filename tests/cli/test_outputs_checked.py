@@ -149,3 +149,28 @@ def test_a_substep_that_would_run_for_hours_is_refused(
         argv += ["--controller", "p", "--gains", "kp=10"]
     assert main(argv) == 2
     _one_line(capsys, "1.1e+10 RK4 steps", "at most 1e+08")
+
+
+def test_out_and_plot_naming_one_file_are_refused(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([*PID, "--out", str(tmp_path / "a.svg"), "--plot", str(tmp_path / "a.svg")]) == 2
+    _one_line(capsys, "--out and --plot name the same file")
+    assert not (tmp_path / "a.svg").exists()
+
+
+def test_review_messages(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Messages found misleading in review: a group that is not a table is not 'unknown';
+    a reference just beyond the stroke is printed exactly, not rounded onto it."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text("supply = 3\n")
+    assert main(["linearize", "--params", str(bad)]) == 2
+    _one_line(capsys, "'supply'", "must be a table ([supply]")
+    assert main([*PID, "--start", "0.5", "--reference", "step:0.5000001",
+                 "--out", str(tmp_path / "x.csv")]) == 2
+    _one_line(capsys, "reaches 1.0000001 m")
+
+
+def test_max_evaluations_takes_1e6(tmp_path: Path) -> None:
+    assert main(["simulate", "--open-loop", "--command", "0.1", "--plant", "nonlinear",
+                 "--method", "solve_ivp", "--duration", "0.01", "--max-evaluations", "1e6",
+                 "--out", str(tmp_path / "x.csv")]) == 0

@@ -101,11 +101,23 @@ def register(subparsers: Any) -> None:
     ol.add_argument("--method", choices=("rk4", "solve_ivp"), default="rk4",
                     help="open loop on the nonlinear plant: the compiled loop (default) or "
                          "scipy's solve_ivp (DOP853), the reference")
-    ol.add_argument("--max-evaluations", type=int, default=MAX_RHS_EVALUATIONS, metavar="N",
+    ol.add_argument("--max-evaluations", type=_count, default=MAX_RHS_EVALUATIONS,
+                    metavar="N",
                     help=f"solve_ivp: stop with an error after N evaluations of the model "
                          f"(default {MAX_RHS_EVALUATIONS:g}; a stiff model can need millions)")
     add_plant_arguments(parser)
     parser.set_defaults(handler=run)
+
+
+def _count(text: str) -> int:
+    """A whole number written as ``1000000`` or ``1e6``."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not (math.isfinite(value) and value == int(value)):
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}")
+    return int(value)
 
 
 def _check_outputs(args: argparse.Namespace) -> None:
@@ -128,6 +140,9 @@ def _check_outputs(args: argparse.Namespace) -> None:
         check_output_path(args.out, option="--out", inputs=inputs)
     if args.plot is not None:
         check_output_path(args.plot, option="--plot", inputs=inputs)
+        if args.out not in (None, "-") and Path(args.plot).resolve() == Path(args.out).resolve():
+            raise InputError(f"--out and --plot name the same file {args.out!r}; give two "
+                             f"names")
 
 
 def _write(result: Any, out: str | None) -> None:

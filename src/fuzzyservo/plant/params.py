@@ -349,11 +349,14 @@ def read_overrides_toml(path: str | Path) -> dict[str, float]:
         raise InputError(f"parameter file {str(path)!r} is not valid TOML: {why}") from None
     flat: dict[str, Any] = {}
     for group, table in data.items():
-        if group not in GROUPS or not isinstance(table, dict):
+        if group not in GROUPS:
             raise ParameterError(
                 f"unknown parameter group {group!r} in {str(path)!r}; allowed groups: "
                 f"{', '.join(GROUPS)}"
             )
+        if not isinstance(table, dict):
+            raise ParameterError(f"{group!r} in {str(path)!r} must be a table ([{group}] "
+                                 f"with field = value lines), got {table!r:.40}")
         for name, value in table.items():
             flat[f"{group}.{name}"] = value
     return flat

@@ -315,7 +315,8 @@ def _run_solve_ivp(plant: NonlinearPlant, u_cmd: FloatArray, dt: float, delay: f
                 f"right-hand-side evaluations, its limit (max_rhs_evals): the model is too "
                 f"stiff for {solver} (a tiny load.mass or a huge stiffness makes it so); use "
                 f"method rk4 (--method rk4, with a small --substep), an implicit solver "
-                f"(solver='Radau'), or raise max_rhs_evals (--max-evaluations)"
+                f"(solver='Radau' in the Python API), or raise max_rhs_evals "
+                f"(--max-evaluations)"
             ) from None
         if sol.status < 0 or sol.y.shape[1] != len(times):
             check_finite(float(sol.t[-1]) if sol.t.size else a,

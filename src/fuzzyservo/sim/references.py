@@ -334,8 +334,9 @@ def check_reference_samples(r: FloatArray, t: FloatArray, *, start: float,
         if bad.size:
             k = int(bad[0])
             raise InputError(
-                f"the reference reaches {float(r[k]):.6g} m at t = {float(t[k]):.6g} s (start "
-                f"{start:.6g} m + offset {float(r[k]) - start:.6g} m), outside the stroke "
+                f"the reference reaches {float(r[k]):.10g} m at t = {float(t[k]):.6g} s "
+                f"(start {start:.10g} m + offset {float(r[k]) - start:.10g} m), outside the "
+                f"stroke "
                 f"[0, {stroke:g}] m; keep start + reference within the stroke")
     move = float(np.max(np.abs(r - start)))
     if resolution > 0.0 and move > 0.0 and resolution > move * (1.0 + 1e-9):  # rounding
