@@ -22,6 +22,7 @@ import contextlib
 import dataclasses
 import datetime as _dt
 import fcntl
+import functools
 import hashlib
 import json
 import os
@@ -117,6 +118,7 @@ def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
     return out
 
 
+@functools.cache
 def _code_digest() -> str:
     """Digest of the package's source, so a code change invalidates cached results."""
     h = hashlib.sha256()
@@ -142,9 +144,13 @@ def _cache_key(plant: str, cfg: StudyConfig, gains: Mapping[str, str], version: 
 def overrides_in_force(params: ServoParams, set_name: str) -> dict[str, float]:
     """Every parameter of ``params`` that differs from the named set, ``{"group.field": v}``
     (whatever set it: ``--params`` file, ``--param``, or code)."""
-    base = to_dict(named_set(set_name))
-    return {f"{g}.{k}": v for g, d in to_dict(params).items() for k, v in d.items()
-            if v != base[g][k]}
+    base = _flat(named_set(set_name))
+    return {name: v for name, v in _flat(params).items() if v != base[name]}
+
+
+def _flat(params: ServoParams) -> dict[str, float]:
+    """Every parameter as ``{"group.field": value}`` [SI]."""
+    return {f"{g}.{k}": v for g, d in to_dict(params).items() for k, v in d.items()}
 
 
 def _notes(plant: str, tuned: Mapping[str, TunedGains]) -> dict[str, str]:
@@ -338,8 +344,7 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
     shown["parameter set"] = cfg.set_name + (
         " with " + ", ".join(f"{k} = {v!r}" for k, v in overrides.items())
         if overrides else " (no override)")
-    base = {f"{g}.{k}": v for g, d in to_dict(named_set(cfg.set_name)).items()
-            for k, v in d.items()}
+    base = _flat(named_set(cfg.set_name))
     notices = [f"Parameter set '{cfg.set_name}'" + (
         ", with these overrides in force (SI units): "
         + "; ".join(f"{k} = {v!r} (the set has {base[k]!r})" for k, v in overrides.items())
