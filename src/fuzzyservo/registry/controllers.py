@@ -218,6 +218,18 @@ class ControllerKind:
         merged = {**self.implied, **gains}
         return np.array([merged[n] for n in self.cls.gain_names], dtype=np.float64)
 
+    def structure(self, gains: Mapping[str, float]) -> str:
+        """What a design of this kind is, given its gains: for the PID family the terms in
+        use ("P", "PI", "PD" or "PID", from the gains that are not 0, including those the
+        kind fixes), else the kind's title. A tuned "PID" whose ki and kd end at 0 is a P
+        controller and is named so (docs/model.md, "Tuning")."""
+        if self.cls is not PIDController:
+            return self.title
+        merged = {**self.implied, **gains}
+        terms = "P" + ("I" if merged.get("ki", 0.0) != 0.0 else "") + (
+            "D" if merged.get("kd", 0.0) != 0.0 else "")
+        return terms
+
     def search_box(self, step: float) -> tuple[tuple[str, float, float, bool], ...]:
         """The tuner's default box for a step of ``step`` [m]: (name, lower, upper, log)."""
         out = []
