@@ -1,81 +1,230 @@
 """The study's figures of one plant (Figs. 4-8, the delay sweep, the changed plants), rendered
-from a :class:`~fuzzyservo.study.paper_study.PlantStudy` into PNG + SVG files."""
+from a :class:`~fuzzyservo.study.paper_study.PlantStudy` into PNG + SVG files.
+
+Every figure, its file name and its caption are planned from the study first
+(:func:`figure_plan`); drawing is the last step and can be skipped: ``study_figures(...,
+reuse=True)`` lists the files a previous run drew from the same inputs (the runner checks
+them) and returns the same captions, without loading matplotlib. Captions are plain text
+(the report escapes them): symbols in Unicode, never a literal underscore.
+"""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
+from .._io import sha256_file
 from ..plots.study_figures import (
     Curve,
     alpha_figure,
+    coinciding,
     command_figure,
+    delay_figure,
     delay_sweep_figure,
+    first_saturation,
     save,
     step_figure,
 )
 from .paper_study import PlantStudy, StudyConfig
 from .report import Figure
 
-__all__ = ["study_figures"]
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure as Drawing
+
+__all__ = ["FIGURE_STEMS", "NEAR_FRACTION", "OVERSHOOT_LIMIT_PCT", "PlannedFigure",
+           "figure_files", "figure_plan", "reusable", "study_figures"]
+
+#: The figures of one plant, without the ``_{plant}`` suffix, in the report's order.
+FIGURE_STEMS: tuple[str, ...] = ("fig4", "fig5", "fig6", "fig7", "fig8",
+                                 "fig8_delay_overshoot", "fig8_delay_settling", "robustness")
+
+#: Curves of Figs. 4 and 7 closer than this fraction of the step over the whole run are
+#: marked as coinciding (2 %: the settling band; closer than that they look like one line).
+NEAR_FRACTION = 0.02
+
+#: The overshoot limit of claims C6 and C8 [%] (``study.claims``), drawn in the sweep.
+OVERSHOOT_LIMIT_PCT = 10.0
+
+#: Controllers of Figs. 4 and 5, in legend order.
+FIG4_KEYS: tuple[str, ...] = ("pid_paper_1", "pid_paper_2", "pid_tuned", "pid2_tuned",
+                              "stfpi", "stfpi_10")
 
 
-def _curve(study: PlantStudy, key: str, *, label: str | None = None,
-           linestyle: str = "-") -> Curve:
+#: Line styles of the changed plants, each its own.
+_VARIANT_STYLES: tuple[str | tuple[float, tuple[float, ...]], ...] = (
+    "--", "-.", ":", (0, (6, 2, 1, 2, 1, 2)), (0, (1, 1.5)), (0, (8, 3)))
+
+
+@dataclass(frozen=True, slots=True)
+class PlannedFigure:
+    """A figure of the study: file stem (no suffix), caption, and how to draw it."""
+
+    stem: str
+    caption: str
+    draw: Callable[[], Drawing]
+
+
+def figure_files(plant: str, out: Path) -> list[Path]:
+    """Every file :func:`study_figures` writes for ``plant`` into ``out``, in order."""
+    return [Path(out) / f"{s}_{plant}.{fmt}" for s in FIGURE_STEMS for fmt in ("png", "svg")]
+
+
+def _curve(study: PlantStudy, key: str, *, label: str | None = None) -> Curve:
     r = study.runs[key]
     lab = label or next(c.label for c in study.cases if c.key == key)
-    return Curve(key, lab, r.t, r.y, r.u, r.alpha, r.r, linestyle)
+    return Curve(key, lab, r.t, r.y, r.u, r.alpha, r.r)
 
 
-def study_figures(study: PlantStudy, cfg: StudyConfig, out: Path,
-                  written: list[Path]) -> list[Figure]:
-    """Render every figure of ``study`` into ``out``; append each file written to ``written``
-    and return the report's figures (PNG and caption)."""
+def _mm(x: float) -> str:
+    return f"{x * 1e3:.2g} mm"
+
+
+def figure_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:
+    """The figures of ``study``, in :data:`FIGURE_STEMS` order, with their captions (computed
+    from the study: what coincides, what saturates, what does not settle)."""
     p = study.plant
     y0 = float(study.runs["stfpi"].y[0])
-    figs: list[Figure] = []
+    step = cfg.step
+    near = NEAR_FRACTION * step
+    plan: list[PlannedFigure] = []
 
-    def put(fig: Any, stem: str, caption: str) -> None:
-        paths = save(fig, out / stem)
-        written.extend(paths)
-        figs.append(Figure(paths[0], caption))
+    def add(stem: str, caption: str, draw: Callable[[], Drawing]) -> None:
+        plan.append(PlannedFigure(f"{stem}_{p}", caption, draw))
 
-    fig4_keys = ("pid_paper_1", "pid_paper_2", "pid_tuned", "pid2_tuned", "stfpi", "stfpi_10")
-    put(step_figure([_curve(study, k) for k in fig4_keys],
-                    f"Fig. 4 ({p} plant): step response, PIDs and self-tuning fuzzy PI", y0=y0),
-        f"fig4_{p}", f"Fig. 4, {p} plant: {cfg.step * 1e3:g} mm step from mid-stroke.")
-    put(command_figure([_curve(study, k) for k in fig4_keys],
-                       f"Fig. 5 ({p} plant): control signals"),
-        f"fig5_{p}", f"Fig. 5, {p} plant: valve commands of the controllers of Fig. 4.")
-    put(alpha_figure([_curve(study, "stfpi")], f"Fig. 6 ({p} plant): self-tuning factor"),
-        f"fig6_{p}", f"Fig. 6, {p} plant: alpha_F(t) of the self-tuning fuzzy PI.")
-    put(step_figure([_curve(study, "fpi"), _curve(study, "stfpi")],
-                    f"Fig. 7 ({p} plant): fuzzy PI without and with self-tuning", y0=y0),
-        f"fig7_{p}", f"Fig. 7, {p} plant: fuzzy PI (alpha = 1) and self-tuning fuzzy PI.")
+    # Fig. 4 and 7: step responses, coinciding curves marked
+    def coincide_text(curves: list[Curve]) -> str:
+        return "".join(
+            f" {curves[c.later].label} stays within {_mm(c.max_diff)} of "
+            f"{curves[c.earlier].label} over the whole run "
+            f"({100 * c.max_diff / step:.2g} % of the step): drawn dashed over it."
+            for c in coinciding(curves, near))
+
+    fig4 = [_curve(study, k) for k in FIG4_KEYS]
+    add("fig4", f"Fig. 4, {p} plant: {step * 1e3:g} mm step from mid-stroke; right, the first "
+        f"4 s.{coincide_text(fig4)}",
+        lambda: step_figure(fig4, f"Fig. 4 ({p} plant): step response, PIDs and self-tuning "
+                                  f"fuzzy PI", y0=y0, near=near))
+
+    kicks = []
+    for c in fig4:
+        sat = first_saturation(c.t, c.u)
+        if sat is not None and sat[0] < 0.2:
+            kicks.append(f"{c.label} from {sat[0] * 1e3:.3g} to {sat[1] * 1e3:.3g} ms")
+    kick_text = (" At the start the command is at its limit |u| = 100 %: "
+                 + "; ".join(kicks) + "." if kicks else "")
+    add("fig5", f"Fig. 5, {p} plant: valve commands of the controllers of Fig. 4; right, the "
+        f"first 0.2 s.{kick_text}",
+        lambda: command_figure(fig4, f"Fig. 5 ({p} plant): control signals"))
+
+    st = _curve(study, "stfpi")
+    add("fig6", f"Fig. 6, {p} plant: the gain updating factor α of the self-tuning fuzzy PI "
+        f"(the paper's α with subscript F).",
+        lambda: alpha_figure([st], f"Fig. 6 ({p} plant): self-tuning factor"))
+
+    fig7 = [_curve(study, "fpi"), st]
+    add("fig7", f"Fig. 7, {p} plant: fuzzy PI (α = 1) and self-tuning fuzzy PI; right, the "
+        f"first 4 s.{coincide_text(fig7)}",
+        lambda: step_figure(fig7, f"Fig. 7 ({p} plant): fuzzy PI without and with "
+                                  f"self-tuning", y0=y0, near=near))
+
     d = study.delayed
-    delayed = Curve("stfpi_delay", f"self-tuning fuzzy PI, {cfg.fig8_delay * 1e3:g} ms delay",
-                    d.t, d.y, d.u, d.alpha, d.r, "--")
-    put(step_figure([_curve(study, "stfpi", label="self-tuning fuzzy PI, no delay"), delayed],
-                    f"Fig. 8 ({p} plant): self-tuning fuzzy PI without and with hose delay",
-                    y0=y0),
-        f"fig8_{p}", f"Fig. 8, {p} plant: the {cfg.fig8_delay * 1e3:g} ms hose delay.")
+    ms = cfg.fig8_delay * 1e3
+    nominal = _curve(study, "stfpi", label="self-tuning fuzzy PI, no delay")
+    delayed = Curve("stfpi_delay", f"self-tuning fuzzy PI, {ms:g} ms delay", d.t, d.y, d.u,
+                    d.alpha, d.r)
+    diff = float(np.max(np.abs(np.interp(nominal.t, d.t, d.y) - nominal.y)))
+    add("fig8", f"Fig. 8, {p} plant: the self-tuning fuzzy PI without and with the {ms:g} ms "
+        f"hose delay; below, the difference (with delay minus without), at most "
+        f"{_mm(diff)}.",
+        lambda: delay_figure(nominal, delayed, f"Fig. 8 ({p} plant): self-tuning fuzzy PI "
+                                               f"without and with hose delay", y0=y0))
+
     labels = {c.key: c.label for c in study.cases}
-    put(delay_sweep_figure(study.delays, {k: v["overshoot"] for k, v in study.sweep.items()},
-                           labels, f"Delay sweep ({p} plant): overshoot",
-                           ylabel="overshoot [%]", limit=10.0),
-        f"fig8_delay_overshoot_{p}",
-        f"Delay sweep, {p} plant: overshoot against the transport delay (gains fixed).")
-    put(delay_sweep_figure(study.delays,
-                           {k: v["settling_time"] for k, v in study.sweep.items()}, labels,
-                           f"Delay sweep ({p} plant): 2 % settling time",
-                           ylabel="settling time (2 %) [s]"),
-        f"fig8_delay_settling_{p}",
-        f"Delay sweep, {p} plant: settling time; a missing point never settled in "
-        f"{cfg.duration:g} s (failure).")
-    curves = [_curve(study, "stfpi", label="nominal")]
+    failed = {k: np.isin(study.delays, np.asarray(study.delay_failures[k], dtype=np.float64))
+              for k in study.sweep}
+    axis_text = ("Delay axis linear to 10 ms, logarithmic above. A cross in the strip below: "
+                 f"the controller fails at that delay (no 2 % settling within the "
+                 f"{cfg.duration:g} s run, or diverged).")
+    sweep_title = f"Delay sweep ({p} plant, gains fixed)"
+    mark = (cfg.fig8_delay, f"hose delay of Fig. 8 ({ms:g} ms)")
+    add("fig8_delay_overshoot",
+        f"Delay sweep, {p} plant: overshoot against the transport delay, gains fixed. "
+        f"{axis_text} Hollow markers: the overshoot of a run that fails. Dashed line: the "
+        f"{OVERSHOOT_LIMIT_PCT:g} % overshoot limit of claims C6 and C8 (not the failure "
+        f"rule). Overshoot axis linear to {OVERSHOOT_LIMIT_PCT:g} %, logarithmic above.",
+        lambda: delay_sweep_figure(
+            study.delays, {k: v["overshoot"] for k, v in study.sweep.items()}, labels,
+            f"{sweep_title}: overshoot", ylabel="overshoot [%]", failed=failed,
+            run_length=cfg.duration, show_failed=True, limit=OVERSHOOT_LIMIT_PCT,
+            limit_label=f"overshoot limit of claims C6, C8 ({OVERSHOOT_LIMIT_PCT:g} %)",
+            mark=mark, log_y=True))
+    never = [labels[k] for k in study.sweep if bool(np.all(failed[k]))]
+    add("fig8_delay_settling",
+        f"Delay sweep, {p} plant: 2 % settling time of the runs that settle. {axis_text}"
+        + (f" Never settles at any delay: {', '.join(never)}." if never else ""),
+        lambda: delay_sweep_figure(
+            study.delays, {k: v["settling_time"] for k, v in study.sweep.items()}, labels,
+            f"{sweep_title}: 2 % settling time", ylabel="settling time (2 %) [s]",
+            failed=failed, run_length=cfg.duration, mark=mark))
+
+    curves = [_curve(study, "stfpi", label="nominal plant")]
+    unsettled = []
     for i, (name, run) in enumerate(study.variant_runs.items()):
-        curves.append(Curve(f"variant{i}", name, run.t, run.y, run.u, run.alpha, run.r,
-                            ("--", "-.", ":")[i % 3]))
-    put(step_figure(curves, f"Changed plant ({p}): self-tuning fuzzy PI, gains fixed", y0=y0),
-        f"robustness_{p}", f"Claim C8, {p} plant: the self-tuning fuzzy PI on changed plants.")
+        settles = not math.isnan(study.variant_metrics[name]["stfpi"]["settling_time"])
+        label = name
+        if not settles:
+            tail = run.y[int(0.75 * run.y.size):]
+            amp = 0.5 * float(np.max(tail) - np.min(tail))
+            label += f": does not settle (last quarter ±{amp * 1e3:.2g} mm; band = min/max)"
+            unsettled.append(name)
+        curves.append(Curve(f"variant{i}", label, run.t, run.y, run.u, run.alpha, run.r,
+                            _VARIANT_STYLES[i % len(_VARIANT_STYLES)],
+                            envelope=not settles))
+    add("robustness",
+        f"Claim C8, {p} plant: the self-tuning fuzzy PI on changed plants, gains fixed; right, "
+        f"the first 4 s."
+        + (f" Does not settle within {cfg.duration:g} s (drawn as its min/max band over the "
+           f"whole run): {', '.join(unsettled)}." if unsettled else ""),
+        lambda: step_figure(curves, f"Changed plants ({p}): self-tuning fuzzy PI, gains fixed",
+                            y0=y0))
+    return plan
+
+
+def reusable(previous: Mapping[str, Any] | None, out: Path, group: str, key: str,
+             files: Sequence[Path]) -> bool:
+    """Whether ``files`` (a figure group: a plant's figures, or Fig. 3) can be taken as they
+    are from the run that wrote ``previous`` (its manifest): that run finished, drew the
+    group from the same inputs (``key``), and every file still has the SHA-256 it recorded.
+    """
+    if not previous or previous.get("complete") is not True:
+        return False
+    record = (previous.get("figures") or {}).get(group)
+    outputs = previous.get("outputs")
+    if not isinstance(record, dict) or not isinstance(outputs, dict):
+        return False
+    rels = [p.relative_to(out).as_posix() for p in files]
+    if record.get("key") != key or record.get("files") != rels:
+        return False
+    return all(p.is_file() and outputs.get(rel) == sha256_file(p)
+               for p, rel in zip(files, rels, strict=True))
+
+
+def study_figures(study: PlantStudy, cfg: StudyConfig, out: Path, written: list[Path], *,
+                  reuse: bool = False) -> list[Figure]:
+    """Render every figure of ``study`` into ``out`` (or, with ``reuse``, take the files a
+    previous run drew from the same inputs, drawing nothing); append each file to
+    ``written`` and return the report's figures (PNG and caption)."""
+    figs: list[Figure] = []
+    for planned in figure_plan(study, cfg):
+        if reuse:
+            paths = [out / f"{planned.stem}.png", out / f"{planned.stem}.svg"]
+        else:
+            paths = save(planned.draw(), out / planned.stem)
+        written.extend(paths)
+        figs.append(Figure(paths[0], planned.caption))
     return figs
