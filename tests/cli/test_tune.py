@@ -14,6 +14,7 @@ from fuzzyservo.cli import main
 from fuzzyservo.files import checkpoint_path, load_checkpoint, read_gains_toml
 from tests.helpers import printed_metrics
 
+REAL_TUNE = tune_cmd.tune_controller
 FAST = ["--popsize", "4", "--maxiter", "6", "--duration", "5", "--no-polish", "--quiet"]
 
 
@@ -58,26 +59,107 @@ def test_bad_input_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert needle in err
 
 
-def test_interrupt_writes_a_checkpoint_and_resume_finishes(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def _interrupting(monkeypatch: pytest.MonkeyPatch, stage: str, generation: int) -> None:
+    """Make the next ``tune`` raise Ctrl-C right after ``stage`` reports ``generation``."""
     real = tune_cmd.tune_controller
 
     def interrupted(*a: Any, progress: Any, **kw: Any) -> Any:
         def stop(p: TuningProgress) -> None:
             progress(p)
-            if p.generation == 2:
+            if (p.stage, p.generation) == (stage, generation):
                 raise KeyboardInterrupt
 
         return real(*a, progress=stop, **kw)
 
-    out = tmp_path / "g.toml"
     monkeypatch.setattr(tune_cmd, "tune_controller", interrupted)
+
+
+def _without_times(path: Path) -> str:
+    """The gains file with the wall time and the date removed (the only fields that may
+    differ between two runs of the same tuning)."""
+    return "\n".join(line for line in path.read_text().splitlines()
+                     if not line.startswith(("elapsed = ", "date = ")))
+
+
+def test_interrupt_writes_a_checkpoint_and_resume_finishes(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    out = tmp_path / "g.toml"
+    _interrupting(monkeypatch, "search", 2)
     assert main(["tune", "--controller", "pid", "--out", str(out), *FAST]) == 130
     ck = checkpoint_path(out)
     saved = load_checkpoint(ck)
-    assert (saved.controller, saved.stage, saved.generation) == ("pid", "search", 2)
+    assert (saved.setup["controller"], saved.stage, saved.generation) == ("pid", "search", 2)
     assert not out.exists()
-    monkeypatch.setattr(tune_cmd, "tune_controller", real)
+    monkeypatch.setattr(tune_cmd, "tune_controller", REAL_TUNE)
     assert main(["tune", "--controller", "pid", "--out", str(out), "--resume", *FAST]) == 0
     assert read_gains_toml(out).controller == "pid"
     assert not ck.exists()
+
+
+
+#: A self-tuning fuzzy PI tuning small enough for a test (its three stages, the polish and
+#: the stopping rule all run): 2 s runs of a 20 mm step.
+STFPI = ["--controller", "stfpi", "--plant", "linear", "--step", "0.02", "--duration", "2",
+         "--popsize", "4", "--patience", "8", "--quiet"]
+
+
+@pytest.mark.slow
+def test_interrupted_and_resumed_tuning_equals_the_uninterrupted_one(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Acceptance: Ctrl-C at three points, then --resume: the gains file is the
+    uninterrupted run's, byte for byte but for the date and the wall time, generations
+    counted on."""
+    ref = tmp_path / "ref.toml"
+    assert main(["tune", *STFPI, "--out", str(ref)]) == 0
+    tuned = read_gains_toml(ref)
+    fpi, refine = tuned.stage("fpi"), tuned.stage("refine")
+    assert fpi.generations > 4 and refine.generations > 4
+    points = [("fpi", 3),                      # early in step 1
+              ("fpi", fpi.generations),         # after step 1's last generation: resume runs
+                                                # its polish and step 2 again
+              ("refine", refine.generations - 2)]  # late in step 3
+    for stage, gen in points:
+        out = tmp_path / f"{stage}-{gen}.toml"
+        _interrupting(monkeypatch, stage, gen)
+        assert main(["tune", *STFPI, "--out", str(out)]) == 130
+        ck = load_checkpoint(checkpoint_path(out))
+        assert (ck.stage, ck.generation) == (stage, gen)
+        seen: list[tuple[str, int]] = []
+
+        def watch(*a: Any, progress: Any, **kw: Any) -> Any:
+            def note(p: TuningProgress) -> None:
+                seen.append((p.stage, p.generation))
+                progress(p)
+            return REAL_TUNE(*a, progress=note, **kw)
+
+        monkeypatch.setattr(tune_cmd, "tune_controller", watch)
+        assert main(["tune", *STFPI, "--out", str(out), "--resume"]) == 0
+        assert seen[0] == (stage, gen + 1) or (stage, gen) == ("fpi", fpi.generations)
+        assert _without_times(out) == _without_times(ref)
+        assert not checkpoint_path(out).exists()
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize(("change", "needle"), [
+    (["--step", "0.03"], "step (--step) = 0.02, this run has 0.03"),
+    (["--set", "stiff-oil"], "param_set (--set) = 'paper', this run has 'stiff-oil'"),
+    (["--seed", "4"], "seed (--seed) = 0, this run has 4"),
+    (["--popsize", "5"], "popsize (--popsize) = 4, this run has 5"),
+    (["--max-overshoot", "5"], "constraints"),
+    (["--delay", "0.006"], "delay (--delay) = 0.0, this run has 0.006"),
+    (["--param", "load.mass=20000"], "overrides"),
+    (["--plant", "nonlinear"], "plant (--plant) = 'linear', this run has 'nonlinear'"),
+])
+def test_a_resume_with_another_setting_is_refused_naming_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+        change: list[str], needle: str) -> None:
+    out = tmp_path / "g.toml"
+    _interrupting(monkeypatch, "fpi", 1)
+    assert main(["tune", *STFPI, "--out", str(out)]) == 130
+    monkeypatch.setattr(tune_cmd, "tune_controller", REAL_TUNE)
+    capsys.readouterr()
+    assert main(["tune", *STFPI, *change, "--out", str(out), "--resume"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and needle in err and "partial.npz" in err
+    assert checkpoint_path(out).exists() and not out.exists()

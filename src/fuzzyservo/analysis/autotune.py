@@ -29,17 +29,20 @@ checkpoints: :mod:`fuzzyservo.files`)::
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
+import json
 import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
 from .._typing import FloatArray
 from ..control.fuzzy_pi import KernelSystem
 from ..errors import FuzzyServoError, ParameterError
-from ..plant import ServoParams
+from ..plant import ServoParams, to_dict
 from ..plant.zoh import check_delay
 from ..registry import ControllerKind, build_plant, controller_kind, plant_kind
 from ..sim import DEFAULT_DELAY, Plant, Step, simulate_batch
@@ -47,18 +50,25 @@ from ..sim.closed_loop import plant_limits, time_grid
 from ..sim.references import check_reference_samples
 from ..sim.stepinfo import METRIC_NAMES
 from .tuning import (
+    DEFAULT_PATIENCE,
+    DEFAULT_RTOL,
     OBJECTIVES,
     GainBounds,
+    SearchState,
+    StopRule,
     TuningConstraints,
+    TuningResult,
     constraint_violation,
     penalised_cost,
     tune,
 )
 
 __all__ = [
+    "DEFAULT_MAXITER",
     "MAX_MAXITER",
     "MAX_POPSIZE",
     "Checkpoint",
+    "DoneStage",
     "StageRecord",
     "TunedGains",
     "TuningProgress",
@@ -67,6 +77,8 @@ __all__ = [
     "default_bounds",
     "full_gains",
     "make_evaluator",
+    "params_digest",
+    "setup_record",
     "stage_as_tuned",
     "tune_controller",
 ]
@@ -85,9 +97,11 @@ def _version() -> str:
 #: popsize * k closed-loop runs (300 for a PID at the cap, some 10 s of CPU per generation for
 #: 10 s runs on the linear plant). Storn and Price advise 5-10 members per searched gain.
 MAX_POPSIZE = 100
-#: Largest generation limit: 25 times the default (40); the search usually converges well
-#: before the default, so more only spends time.
-MAX_MAXITER = 1000
+#: Largest generation limit: 10 times the default; the stopping rule ends a search long before.
+MAX_MAXITER = 5000
+#: Default generation limit of a search stage: a budget the default searches of the study's
+#: designs stay well below (they converge in 40-330 generations, benchmarks/tuning_seeds.py).
+DEFAULT_MAXITER = 500
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -124,7 +138,11 @@ class TuningSetup:
         Seed of the search.
     popsize, maxiter : int
         Differential-evolution population multiplier (2 to :data:`MAX_POPSIZE`) and generation
-        limit (1 to :data:`MAX_MAXITER`) (stage 1 for stfpi).
+        limit (1 to :data:`MAX_MAXITER`) of each search stage; the limit is a budget, the
+        stopping rule normally ends the search first.
+    patience, rtol : int, float
+        Stopping rule (:class:`fuzzyservo.analysis.tuning.StopRule`): converged when the best
+        cost improved by no more than ``rtol`` (relative) over ``patience`` generations.
     pid_n : float
         Derivative filter coefficient n held while tuning a kind with that gain [1/s].
     polish : bool
@@ -146,7 +164,9 @@ class TuningSetup:
     constraints: TuningConstraints = field(default_factory=TuningConstraints)
     seed: int = 0
     popsize: int = 10
-    maxiter: int = 40
+    maxiter: int = DEFAULT_MAXITER
+    patience: int = DEFAULT_PATIENCE
+    rtol: float = DEFAULT_RTOL
     pid_n: float = 100.0
     polish: bool = True
     bounds: GainBounds | None = None
@@ -182,6 +202,7 @@ class TuningSetup:
         if not 1 <= self.maxiter <= MAX_MAXITER:
             raise ParameterError(f"maxiter must be between 1 and {MAX_MAXITER}, got "
                                  f"{self.maxiter!r}")
+        StopRule(patience=self.patience, rtol=self.rtol)  # checks both
         b = self.bounds
         if b is not None and b.names != default_bounds(self.controller, self.step).names:
             raise ParameterError(
@@ -201,17 +222,64 @@ class TuningSetup:
         """Values of the gains not searched (registry values; n = :attr:`pid_n`)."""
         return self.kind.held({"n": self.pid_n})
 
+    @property
+    def stop(self) -> StopRule:
+        """The stopping rule of every search stage."""
+        return StopRule(patience=self.patience, rtol=self.rtol)
+
+
+def setup_record(setup: TuningSetup) -> dict[str, Any]:
+    """Every setting of ``setup`` as plain values (TOML/JSON), in a fixed order: what a gains
+    file's ``[tuning]`` table and a checkpoint record (a resume is refused unless it is
+    equal, :func:`tune_controller`)."""
+    b = setup.search_bounds()
+    c = setup.constraints
+    cons: dict[str, Any] = {"require_settled": c.require_settled}
+    for name in ("max_overshoot", "max_steady_state_error", "max_u"):
+        v = getattr(c, name)
+        if v is not None:
+            cons[name] = float(v)
+    return {
+        "controller": setup.controller, "plant": setup.plant, "param_set": setup.param_set,
+        "overrides": {k: float(v) for k, v in setup.overrides},
+        "start": setup.start, "step": setup.step, "duration": setup.duration,
+        "ts": setup.ts, "delay": setup.delay, "objective": setup.objective,
+        "seed": setup.seed, "popsize": setup.popsize, "maxiter": setup.maxiter,
+        "patience": setup.patience, "rtol": setup.rtol, "pid_n": setup.pid_n,
+        "polish": setup.polish, "constraints": cons,
+        "bounds": {n: [lo, hi, lg, zr] for n, lo, hi, lg, zr in
+                   zip(b.names, b.lower, b.upper, b.log_scale, b.zero, strict=True)},
+    }
+
+
+#: The command-line option of each setting, for the message refusing a resume.
+_OPTION = {"controller": "--controller", "plant": "--plant", "param_set": "--set",
+           "overrides": "--param/--params", "start": "--start", "step": "--step",
+           "duration": "--duration", "ts": "--ts", "delay": "--delay",
+           "objective": "--objective", "seed": "--seed", "popsize": "--popsize",
+           "maxiter": "--maxiter", "constraints": "--max-overshoot/--max-sse/--max-u",
+           "polish": "--no-polish"}
+
+
+def params_digest(params: ServoParams) -> str:
+    """SHA-256 of every parameter value (``repr``): a checkpoint's parameters, compared on
+    resume whatever set them (named set, ``--param``, ``--params`` file)."""
+    blob = json.dumps(to_dict(params), sort_keys=True, default=repr)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
 
 def default_bounds(controller: str, step: float = 0.1) -> GainBounds:
     """The registry's search box of ``controller`` for a step of ``step`` [m].
 
     See :class:`fuzzyservo.registry.GainSpec`: PID gains on log scales (kp 0.01-100 1/m,
-    ki 1e-3-100 1/(m s), kd 1e-4-10 s/m), pid2's b in [0, 1] linear; the fuzzy PIs' ke in
-    [1, 10]/step 1/m, kde in [10, 1e6] per sample, kdu in [1e-5, 1] (docs/model.md, "Tuning").
+    ki 0 or 1e-3-100 1/(m s), kd 0 or 1e-4-10 s/m), pid2's b in [0, 1] linear; the fuzzy PIs'
+    ke in [0.1, 100]/step 1/m, kde in [10, 1e6] per sample, kdu in [1e-5, 1] (docs/model.md,
+    "Tuning").
     """
     box = controller_kind(controller).search_box(step)
     return GainBounds(names=tuple(b[0] for b in box), lower=tuple(b[1] for b in box),
-                      upper=tuple(b[2] for b in box), log_scale=tuple(b[3] for b in box))
+                      upper=tuple(b[2] for b in box), log_scale=tuple(b[3] for b in box),
+                      zero=tuple(b[4] for b in box))
 
 
 def _kind_gains(kind: ControllerKind, setup: TuningSetup, names: tuple[str, ...],
@@ -276,32 +344,82 @@ def make_evaluator(setup: TuningSetup, params: ServoParams, *,
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class DoneStage:
+    """A completed stage, as a checkpoint keeps it.
+
+    Attributes
+    ----------
+    gains : tuple of float
+        Its searched gains (order of the search box) [gain units].
+    n_evaluations, generations : int
+        Closed-loop runs and generations it used.
+    converged : bool
+        Whether its search met the stopping rule (True for a stage that is not a search).
+    """
+
+    gains: tuple[float, ...]
+    n_evaluations: int
+    generations: int = 0
+    converged: bool = True
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Checkpoint:
+    """State of a tuning after a generation, enough to resume it exactly.
+
+    Attributes
+    ----------
+    setup : dict
+        :func:`setup_record` of the tuning (a resume with another setting is refused).
+    params : str
+        :func:`params_digest` of its parameters.
+    version : str
+        fuzzyservo version that wrote it.
+    stage : str
+        Stage that was running.
+    state : SearchState
+        That stage's search state after its last completed generation.
+    done : dict
+        Completed stages by name.
+    """
+
+    setup: dict[str, Any]
+    params: str
+    version: str
+    stage: str
+    state: SearchState
+    done: dict[str, DoneStage] = field(default_factory=dict)
+
+    @property
+    def generation(self) -> int:
+        """Generations completed in :attr:`stage`."""
+        return self.state.generation
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class TuningProgress:
     """One generation of a search stage, for progress bars and checkpoints.
 
     Attributes
     ----------
     stage : str
-        ``search`` (pid, pid2, fpi), or ``fpi``, ``rise``, ``refine`` (stfpi steps 1-3).
+        ``search`` (p, pi, pid, pid2, fpi), or ``fpi``, ``refine`` (stfpi steps 1 and 3).
     generation, max_generations : int
-        Generations done and the limit of this stage.
+        Generations done (0: the initial population) and the limit of this stage.
     best_cost : float
         Best penalised cost so far [-].
-    population : ndarray (m, k)
-        Current population in gain units (searched gains).
     n_evaluations : int
         Closed-loop runs so far in this stage.
-    done : dict
-        Searched gains of the completed stages, by stage name.
+    checkpoint : Checkpoint
+        Everything needed to resume from here.
     """
 
     stage: str
     generation: int
     max_generations: int
     best_cost: float
-    population: FloatArray
     n_evaluations: int
-    done: dict[str, tuple[float, ...]]
+    checkpoint: Checkpoint
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -311,7 +429,7 @@ class StageRecord:
     Attributes
     ----------
     name : str
-        Stage name (see :class:`TuningProgress`).
+        Stage name (see :class:`TuningProgress`; ``rise`` for stfpi's step 2).
     gains : dict
         Every gain of the stage's controller (``fpi`` stage: the fuzzy PI's) [gain units].
     metrics : dict
@@ -322,6 +440,12 @@ class StageRecord:
         Whether it meets the constraints.
     n_evaluations : int
         Closed-loop runs the stage used.
+    generations : int
+        Generations of its search (0 for a stage that is not a search).
+    converged : bool
+        Whether its search met the stopping rule (True for a stage that is not a search).
+    at_bounds : dict
+        Searched gains that ended on a bound of the stage's box, ``{name: "lower"|"upper"}``.
     """
 
     name: str
@@ -330,6 +454,9 @@ class StageRecord:
     objective_value: float
     feasible: bool
     n_evaluations: int
+    generations: int = 0
+    converged: bool = True
+    at_bounds: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -362,6 +489,13 @@ class TunedGains:
         fuzzyservo version that tuned.
     date : str
         ISO date and time (UTC) of the tuning.
+    converged : bool
+        Whether every search stage met the stopping rule.
+    generations : int
+        Generations of all search stages.
+    at_bounds : dict
+        Searched gains of the result that end on a bound of the default box,
+        ``{name: "lower"|"upper"}`` (a PID's ki or kd at 0 is on its lower bound).
     """
 
     controller: str
@@ -376,6 +510,9 @@ class TunedGains:
     stages: tuple[StageRecord, ...] = ()
     version: str = ""
     date: str = ""
+    converged: bool = True
+    generations: int = 0
+    at_bounds: dict[str, str] = field(default_factory=dict)
 
     def stage(self, name: str) -> StageRecord:
         """The record of stage ``name``."""
@@ -384,86 +521,53 @@ class TunedGains:
                 return s
         raise ParameterError(f"no stage {name!r}; stages: {[s.name for s in self.stages]}")
 
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class Checkpoint:
-    """State of an interrupted tuning, enough to resume it.
-
-    Attributes
-    ----------
-    controller, plant, objective : str
-        Identify the setup (resuming another setup is refused).
-    seed : int
-        Seed of the interrupted search.
-    stage : str
-        Stage that was running.
-    generation : int
-        Generations it had completed.
-    population : ndarray (m, k)
-        Its population in gain units.
-    done : dict
-        Searched gains of the completed stages.
-    """
-
-    controller: str
-    plant: str
-    objective: str
-    seed: int
-    stage: str
-    generation: int
-    population: FloatArray
-    done: dict[str, tuple[float, ...]] = field(default_factory=dict)
-
-    @classmethod
-    def from_progress(cls, setup: TuningSetup, p: TuningProgress) -> Checkpoint:
-        """Checkpoint of ``setup`` at progress report ``p``."""
-        return cls(controller=setup.controller, plant=setup.plant, objective=setup.objective,
-                   seed=setup.seed, stage=p.stage, generation=p.generation,
-                   population=np.array(p.population, dtype=np.float64), done=dict(p.done))
+    @property
+    def structure(self) -> str:
+        """What the design is (:meth:`fuzzyservo.registry.ControllerKind.structure`: a
+        tuned PID with ki = kd = 0 is a "P")."""
+        return controller_kind(self.controller).structure(self.gains)
 
 
 # ---------------------------------------------------------------------------- tuning
 
 
 def _record(name: str, setup: TuningSetup, kind: ControllerKind, searched: FloatArray,
-            metrics: Mapping[str, FloatArray], n_eval: int) -> StageRecord:
-    m = {k: float(np.asarray(v)[0]) for k, v in metrics.items()}
-    feasible = bool(constraint_violation(metrics, setup.constraints, setup.step)[0] == 0.0)
+            metrics: Mapping[str, Any], n_eval: int, *, generations: int = 0,
+            converged: bool = True, at_bounds: Mapping[str, str] | None = None
+            ) -> StageRecord:
+    m = {k: float(np.asarray(v).reshape(-1)[0]) for k, v in metrics.items()}
+    feasible = bool(constraint_violation({k: np.array([v]) for k, v in m.items()},
+                                         setup.constraints, setup.step)[0] == 0.0)
     gains = _kind_gains(kind, setup, setup.search_bounds().names, np.atleast_2d(searched)[0])
     return StageRecord(name=name, gains=gains, metrics=m,
                        objective_value=m[setup.objective], feasible=feasible,
-                       n_evaluations=n_eval)
+                       n_evaluations=n_eval, generations=generations, converged=converged,
+                       at_bounds=dict(at_bounds or {}))
 
 
 def _search(setup: TuningSetup, evaluate: Evaluator, bounds: GainBounds, stage: str, *,
-            popsize: int, maxiter: int, init: FloatArray | None, seed: int,
-            done: dict[str, tuple[float, ...]],
-            progress: Callable[[TuningProgress], None] | None) -> tuple[FloatArray, int]:
-    count = {"n": 0}
-
-    def counted(g: FloatArray) -> dict[str, FloatArray]:
-        count["n"] += np.atleast_2d(g).shape[0]
-        return evaluate(g)
-
-    def on_gen(gen: int, best: float, pop: FloatArray, costs: FloatArray) -> None:
-        del costs
+            popsize: int, init: FloatArray | None, resume: SearchState | None,
+            snapshot: Callable[[str, SearchState], Checkpoint],
+            progress: Callable[[TuningProgress], None] | None) -> TuningResult:
+    def on_gen(state: SearchState) -> None:
         if progress is not None:
-            progress(TuningProgress(stage=stage, generation=gen, max_generations=maxiter,
-                                    best_cost=best, population=pop,
-                                    n_evaluations=count["n"], done=dict(done)))
+            progress(TuningProgress(stage=stage, generation=state.generation,
+                                    max_generations=setup.maxiter,
+                                    best_cost=state.best_cost,
+                                    n_evaluations=state.n_evaluations,
+                                    checkpoint=snapshot(stage, state)))
 
     try:
-        res = tune(counted, bounds, objective=setup.objective, constraints=setup.constraints,
-                   step_size=setup.step, seed=seed, popsize=popsize, maxiter=maxiter,
-                   init=init, polish=setup.polish, on_generation=on_gen)
+        return tune(evaluate, bounds, objective=setup.objective,
+                    constraints=setup.constraints, step_size=setup.step, seed=setup.seed,
+                    popsize=popsize, maxiter=setup.maxiter, stop=setup.stop,
+                    polish=setup.polish, init=init, resume=resume, on_generation=on_gen)
     except Exception as exc:
-        # scipy's differential evolution re-raises a ValueError of the objective as a
-        # RuntimeError "from" it: surface our own error, one line, as itself
+        # an error of ours raised inside a library call: surface it, one line, as itself
         own = _own_error(exc)
         if own is None or own is exc:
             raise
         raise own from None
-    return np.array([[res.gains[n] for n in bounds.names]]), count["n"]
 
 
 def _own_error(exc: BaseException) -> FuzzyServoError | None:
@@ -496,17 +600,46 @@ def check_run(setup: TuningSetup, params: ServoParams) -> None:
                             params.cylinder.stroke, resolution=resolution)
 
 
-def _check_resume(resume: Checkpoint, bounds: GainBounds) -> None:
-    pop = resume.population
+def _check_resume(resume: Checkpoint, setup: TuningSetup, params: ServoParams,
+                  bounds: GainBounds) -> None:
+    """Refuse a checkpoint of any other setting, parameters or version, naming the first."""
+    mine = setup_record(setup)
+    for key, value in mine.items():
+        theirs = resume.setup.get(key, "(not recorded)")
+        if theirs != value:
+            opt = f" ({_OPTION[key]})" if key in _OPTION else ""
+            raise ParameterError(
+                f"the checkpoint was made with {key}{opt} = {_show(theirs)}, this run has "
+                f"{_show(value)}: resume with the same settings, or run without --resume")
+    extra = sorted(set(resume.setup) - set(mine))
+    if extra:
+        raise ParameterError(f"the checkpoint records a setting {extra[0]!r} this version "
+                             f"does not have: run without --resume")
+    if resume.params != params_digest(params):
+        raise ParameterError("the checkpoint was made with other parameter values (--set, "
+                             "--param or --params): resume with the same parameters, or run "
+                             "without --resume")
+    if resume.version != _version():
+        raise ParameterError(f"the checkpoint was made by fuzzyservo {resume.version}, this "
+                             f"is {_version()}: run without --resume")
     k = len(bounds.names)
-    if pop.ndim != 2 or pop.shape[1] != k or not np.all(np.isfinite(pop)):
+    pop = resume.state.population
+    if (pop.ndim != 2 or pop.shape[1] != k or pop.shape[0] != resume.state.costs.shape[0]
+            or not np.all(np.isfinite(pop))):
         raise ParameterError(f"checkpoint population must be finite with {k} columns "
                              f"({', '.join(bounds.names)}), got shape {pop.shape}; delete the "
                              f"checkpoint or run without --resume")
-    for name, v in resume.done.items():
-        if len(v) != k or not all(math.isfinite(x) for x in v):
+    for name, d in resume.done.items():
+        if len(d.gains) != k or not all(math.isfinite(x) for x in d.gains):
             raise ParameterError(f"checkpoint stage {name!r} must hold {k} finite gains, got "
-                                 f"{len(v)}; delete the checkpoint or run without --resume")
+                                 f"{len(d.gains)}; delete the checkpoint or run without "
+                                 f"--resume")
+
+
+def _show(v: Any) -> str:
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {_show(x)}" for k, x in v.items()) + "}" if v else "none"
+    return repr(v) if isinstance(v, str) else f"{v}"
 
 
 def _rise_match(setup: TuningSetup, evaluate: Evaluator, base: FloatArray, col: int,
@@ -573,10 +706,11 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
     systems : mapping, optional
         Fuzzy systems by role (``du``, ``alpha``); default the paper's (Fig. 3).
     progress : callable, optional
-        Called with a :class:`TuningProgress` after each generation of each stage.
+        Called with a :class:`TuningProgress` (holding a :class:`Checkpoint`) after the
+        initial population and each generation of each search stage.
     resume : Checkpoint, optional
-        Continue an interrupted run: its population seeds the stage it was in, completed
-        stages are not repeated.
+        Continue an interrupted run from its last checkpoint: the result (gains, metrics,
+        objective, run and generation counts) equals the uninterrupted run's, bit for bit.
 
     Returns
     -------
@@ -585,106 +719,121 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
     Raises
     ------
     ParameterError
-        A missing fuzzy system, or a checkpoint of another setup or of the wrong shape.
+        A missing fuzzy system, or a checkpoint of another setting (named), other
+        parameters, another fuzzyservo version, or of the wrong shape.
     InputError
         The step leaves the stroke, or the transducer resolution is coarser than the step
         (:func:`check_run`).
 
     Notes
     -----
-    The ``"paper-steps"`` procedure is the paper's Sec. III A, steps 1-3; step 2's rise-time
+    Every search stage is a differential evolution that stops by ``setup.stop`` (or at
+    ``setup.maxiter`` generations, then reported as not converged), plus a polish. The
+    ``"paper-steps"`` procedure is the paper's Sec. III A, steps 1-3; step 2's rise-time
     match is a batched bracketing of the output gain (kdu) on a log grid followed by
     bisection to the smallest value >= step 1's whose 10-90 % rise time does not exceed step
-    1's; step 3 is a differential evolution (``popsize`` 5, ``maxiter // 2`` generations) in
-    the box spanning steps 1 and 2 widened by a factor 3, its population seeded with both,
-    plus a polish.
+    1's; step 3 is a differential evolution (``popsize`` 5) in the box spanning steps 1 and 2
+    widened by a factor 3, its population seeded with both.
     """
-    if resume is not None and (resume.controller, resume.plant, resume.objective) != (
-            setup.controller, setup.plant, setup.objective):
-        raise ParameterError(
-            f"checkpoint is for {resume.controller} on the {resume.plant} plant with "
-            f"{resume.objective}, not {setup.controller} on the {setup.plant} plant with "
-            f"{setup.objective}")
     t0 = time.perf_counter()
     kind = setup.kind
     bounds = setup.search_bounds()
     if resume is not None:
-        _check_resume(resume, bounds)
+        _check_resume(resume, setup, params, bounds)
     check_run(setup, params)
-    done: dict[str, tuple[float, ...]] = dict(resume.done) if resume else {}
+    done: dict[str, DoneStage] = dict(resume.done) if resume else {}
+    record = setup_record(setup)
+    digest = params_digest(params)
+    version = _version()
 
-    def init_for(stage: str) -> FloatArray | None:
-        if resume is not None and resume.stage == stage and resume.population.shape[0] >= 5:
-            return resume.population
-        return None
+    def snapshot(stage: str, state: SearchState) -> Checkpoint:
+        return Checkpoint(setup=record, params=digest, version=version, stage=stage,
+                          state=state, done=dict(done))
+
+    def resumed(stage: str) -> SearchState | None:
+        return resume.state if resume is not None and resume.stage == stage else None
+
+    def search(name: str, evaluate: Evaluator, box: GainBounds, popsize: int,
+               init: FloatArray | None) -> tuple[FloatArray, StageRecord]:
+        res = _search(setup, evaluate, box, name, popsize=popsize, init=init,
+                      resume=resumed(name), snapshot=snapshot, progress=progress)
+        g = np.array([[res.gains[n] for n in box.names]])
+        flags = bounds.at_bounds(g[0])
+        done[name] = DoneStage(gains=tuple(float(v) for v in g[0]),
+                               n_evaluations=res.n_evaluations, generations=res.generations,
+                               converged=res.converged)
+        return g, _record(name, setup, kind_of[name], g, res.metrics, res.n_evaluations,
+                          generations=res.generations, converged=res.converged,
+                          at_bounds=flags)
+
+    def replay(name: str, evaluate: Evaluator) -> tuple[FloatArray, StageRecord]:
+        d = done[name]
+        g = np.array([d.gains])
+        return g, _record(name, setup, kind_of[name], g, evaluate(g), d.n_evaluations,
+                          generations=d.generations, converged=d.converged,
+                          at_bounds=bounds.at_bounds(g[0]))
 
     stages: list[StageRecord] = []
-    total = 0
     if kind.tuning == "search":
+        kind_of = {"search": kind}
         evaluate = _evaluator(setup, kind, params, systems)
-        best, n = _search(setup, evaluate, bounds, "search", popsize=setup.popsize,
-                          maxiter=setup.maxiter, init=init_for("search"), seed=setup.seed,
-                          done=done, progress=progress)
-        total += n + 1
-        stages.append(_record("search", setup, kind, best, evaluate(best), n + 1))
+        _, rec = (replay("search", evaluate) if "search" in done else
+                  search("search", evaluate, bounds, setup.popsize, None))
+        stages.append(rec)
     else:
         assert kind.stage_kind is not None and kind.rise_gain is not None
         first = controller_kind(kind.stage_kind)
         if first.searched != kind.searched:
             raise ParameterError(f"{kind.name}: its step-1 kind {first.name} must search the "
                                  f"same gains")
+        kind_of = {first.name: first, "rise": kind, "refine": kind}
         col = bounds.names.index(kind.rise_gain)
         ev1 = _evaluator(setup, first, params, systems)
         ev = _evaluator(setup, kind, params, systems)
         # step 1: the stage kind (the fuzzy PI, alpha = 1)
-        if first.name in done:
-            g1 = np.array([done[first.name]])
-            n1 = 0
-        else:
-            g1, n1 = _search(setup, ev1, bounds, first.name, popsize=setup.popsize,
-                             maxiter=setup.maxiter, init=init_for(first.name),
-                             seed=setup.seed, done=done, progress=progress)
-            done[first.name] = tuple(float(v) for v in g1[0])
-        m1 = ev1(g1)
-        stages.append(_record(first.name, setup, first, g1, m1, n1 + 1))
+        g1, rec1 = (replay(first.name, ev1) if first.name in done else
+                    search(first.name, ev1, bounds, setup.popsize, None))
+        stages.append(rec1)
         # step 2: the other gains kept; raise the output gain until the rise time is back
         if "rise" in done:
-            g2 = np.array([done["rise"]])
-            n2 = 0
+            g2, rec2 = replay("rise", ev)
         else:
-            target = float(m1["rise_time"][0])
+            target = rec1.metrics["rise_time"]
             value, n2 = _rise_match(setup, ev, g1[0].copy(), col,
                                     target if math.isfinite(target) else math.inf,
                                     bounds.upper[col])
             g2 = g1.copy()
             g2[0, col] = value
-            done["rise"] = tuple(float(v) for v in g2[0])
-        stages.append(_record("rise", setup, kind, g2, ev(g2), n2 + 1))
-        # step 3: refine every searched gain around step 2
-        lo = np.maximum(np.asarray(bounds.lower), np.minimum(g1[0], g2[0]) / 3.0)
-        hi = np.minimum(np.asarray(bounds.upper), np.maximum(g1[0], g2[0]) * 3.0)
-        local = GainBounds(names=bounds.names, lower=tuple(lo), upper=tuple(hi),
-                           log_scale=bounds.log_scale)
-        init3 = init_for("refine")
-        if init3 is None:
+            m2 = ev(g2)
+            done["rise"] = DoneStage(gains=tuple(float(v) for v in g2[0]),
+                                     n_evaluations=n2 + 1)
+            rec2 = _record("rise", setup, kind, g2, m2, n2 + 1,
+                           at_bounds=bounds.at_bounds(g2[0]))
+        stages.append(rec2)
+        # step 3: refine every searched gain, from a population seeded with steps 1 and 2
+        if "refine" in done:
+            _, rec3 = replay("refine", ev)
+        else:
+            m = max(5, setup.popsize * len(bounds.names))
             rng = np.random.default_rng(setup.seed)
-            z = rng.uniform(local.to_search(lo), local.to_search(hi), size=(13, lo.size))
-            init3 = np.vstack([g2, g1, local.from_search(z)])
-        g3, n3 = _search(setup, ev, local, "refine", popsize=5,
-                         maxiter=max(setup.maxiter // 2, 1), init=init3, seed=setup.seed,
-                         done=done, progress=progress)
-        stages.append(_record("refine", setup, kind, g3, ev(g3), n3 + 1))
-        total += n1 + n2 + n3 + 4
+            u = rng.random((m - 2, len(bounds.names)))
+            init3 = np.vstack([g2, g1, bounds.from_unit(u)])
+            _, rec3 = search("refine", ev, bounds, setup.popsize, init3)
+        stages.append(rec3)
     final = stages[-1]
     best_metrics = {k: np.array([v]) for k, v in final.metrics.items()}
     cost = float(penalised_cost(best_metrics, setup.objective, setup.constraints,
                                 setup.step)[0])
+    searches = [s for s in stages if s.name != "rise"]
     return TunedGains(
         controller=setup.controller, gains=dict(final.gains), metrics=dict(final.metrics),
         objective_value=final.objective_value, cost=cost, feasible=final.feasible,
-        setup=setup, elapsed=time.perf_counter() - t0, n_evaluations=total,
-        stages=tuple(stages), version=_version(),
-        date=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"))
+        setup=setup, elapsed=time.perf_counter() - t0,
+        n_evaluations=sum(s.n_evaluations for s in stages), stages=tuple(stages),
+        version=version, date=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        converged=all(s.converged for s in searches),
+        generations=sum(s.generations for s in searches),
+        at_bounds=dict(final.at_bounds))
 
 
 def stage_as_tuned(tuned: TunedGains, stage: str) -> TunedGains:
@@ -700,4 +849,6 @@ def stage_as_tuned(tuned: TunedGains, stage: str) -> TunedGains:
     return replace(tuned, controller=s.name, gains=dict(s.gains), metrics=dict(s.metrics),
                    objective_value=s.objective_value, feasible=s.feasible,
                    setup=replace(tuned.setup, controller=s.name),
-                   n_evaluations=s.n_evaluations, stages=(s,), cost=cost)
+                   n_evaluations=s.n_evaluations, stages=(s,), cost=cost,
+                   converged=s.converged, generations=s.generations,
+                   at_bounds=dict(s.at_bounds))

@@ -5,8 +5,12 @@
 [--duration 10] [--ts 0.001] [--delay S|hose] --out gains.toml [--resume]``: any controller and
 plant of the registry; what is searched is the controller's registry entry.
 
-A progress bar per search stage goes to stderr. Ctrl-C writes the current population to
-``OUT.partial.npz`` next to ``--out``; ``--resume`` continues from it.
+A progress bar per search stage goes to stderr. Each search stops when it has converged
+(``--patience``, ``--rtol``) or at ``--maxiter`` generations (then a warning says it did not
+converge); a gain that ends on a bound of its box is named in a warning. Ctrl-C writes the
+search state to ``OUT.partial.npz`` next to ``--out``; ``--resume`` with the same options
+continues from it and gives the uninterrupted run's result, bit for bit; a resume with any
+other setting is refused, naming it.
 
 Everything is checked before the search starts: ``--out`` (its folder exists and is writable,
 it is not a folder nor the ``--params`` file), the run (``--duration``/``--ts`` at most
@@ -27,6 +31,7 @@ from typing import Any
 
 from .._io import check_output_path
 from ..analysis.autotune import (
+    DEFAULT_MAXITER,
     MAX_MAXITER,
     MAX_POPSIZE,
     Checkpoint,
@@ -34,7 +39,7 @@ from ..analysis.autotune import (
     TuningSetup,
     tune_controller,
 )
-from ..analysis.tuning import OBJECTIVES, TuningConstraints
+from ..analysis.tuning import OBJECTIVES, StopRule, TuningConstraints
 from ..errors import ParameterError
 from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gains_toml
 from ..plant import ServoParams
@@ -43,6 +48,8 @@ from ._plantargs import add_plant_arguments, overrides_from_args, params_from_ar
 from ._runargs import add_delay_argument, add_plant_choice, delay_from_args
 
 __all__ = ["register", "run"]
+
+DEFAULT_STOP = StopRule()
 
 
 def register(subparsers: Any) -> None:
@@ -70,8 +77,15 @@ def register(subparsers: Any) -> None:
     p.add_argument("--popsize", type=int, default=10,
                    help=f"population multiplier, 2 to {MAX_POPSIZE}: popsize x (searched "
                         f"gains) runs per generation (default 10)")
-    p.add_argument("--maxiter", type=int, default=40,
-                   help=f"generation limit, 1 to {MAX_MAXITER} (default 40)")
+    p.add_argument("--maxiter", type=int, default=DEFAULT_MAXITER,
+                   help=f"generation limit of each search stage, 1 to {MAX_MAXITER} (default "
+                        f"{DEFAULT_MAXITER}); a search normally stops before, when it has "
+                        f"converged (--patience, --rtol)")
+    p.add_argument("--patience", type=int, default=DEFAULT_STOP.patience, metavar="N",
+                   help=f"stopping rule: converged when the best cost improved by at most "
+                        f"--rtol over N generations (default {DEFAULT_STOP.patience})")
+    p.add_argument("--rtol", type=float, default=DEFAULT_STOP.rtol, metavar="R",
+                   help=f"stopping rule's relative improvement (default {DEFAULT_STOP.rtol:g})")
     p.add_argument("--step", type=float, default=0.1, metavar="M",
                    help="reference step [m] (default 0.1)")
     p.add_argument("--duration", type=float, default=10.0, metavar="S",
@@ -109,7 +123,8 @@ def _setup(args: argparse.Namespace, params: ServoParams) -> TuningSetup:
         constraints=TuningConstraints(max_overshoot=args.max_overshoot,
                                       max_steady_state_error=args.max_sse / 100.0,
                                       max_u=args.max_u),
-        seed=args.seed, popsize=args.popsize, maxiter=args.maxiter, polish=args.polish)
+        seed=args.seed, popsize=args.popsize, maxiter=args.maxiter, patience=args.patience,
+        rtol=args.rtol, polish=args.polish)
 
 
 class _Progress:
@@ -124,7 +139,7 @@ class _Progress:
         self.plain = os.environ.get("CI", "").lower() == "true" or not sys.stderr.isatty()
 
     def __call__(self, p: TuningProgress) -> None:
-        self.latest = Checkpoint.from_progress(self.setup, p)
+        self.latest = p.checkpoint
         if self.quiet:
             return
         if p.stage != self.stage:
@@ -133,12 +148,15 @@ class _Progress:
             if not self.plain:
                 from tqdm import tqdm
 
-                self.bar = tqdm(total=p.max_generations, desc=f"tune {p.stage}", unit="gen",
-                                file=sys.stderr, leave=True)
+                # counts on from a resumed generation; the bar ends early when converged
+                self.bar = tqdm(total=p.max_generations, initial=p.generation,
+                                desc=f"tune {p.stage}", unit="gen", file=sys.stderr,
+                                leave=True)
         if self.bar is not None:
-            self.bar.set_postfix(best=f"{p.best_cost:.4g}", runs=p.n_evaluations)
-            self.bar.update(1)
-        elif p.generation == 1 or p.generation % 10 == 0:
+            self.bar.set_postfix(best=f"{p.best_cost:.6g}", runs=p.n_evaluations)
+            self.bar.n = p.generation
+            self.bar.refresh()
+        elif p.generation % 10 == 0 or p.generation == 1:
             print(f"tune {p.stage}: generation {p.generation}/{p.max_generations}, "
                   f"best cost {p.best_cost:.4g}, {p.n_evaluations} runs", file=sys.stderr,
                   flush=True)
@@ -158,14 +176,20 @@ def run(args: argparse.Namespace) -> int:
     resume = load_checkpoint(ckpt_file) if args.resume else None
     progress = _Progress(setup, args.quiet)
     try:
-        tuned = tune_controller(setup, params, progress=progress, resume=resume)
+        try:
+            tuned = tune_controller(setup, params, progress=progress, resume=resume)
+        except ParameterError as exc:
+            if resume is not None and str(exc).startswith("the checkpoint"):
+                raise ParameterError(f"{str(ckpt_file)!r}: {exc}") from None
+            raise
     except KeyboardInterrupt:
         progress.close()
         if progress.latest is None:  # nothing to save yet: the CLI's one line says so
             raise
         save_checkpoint(ckpt_file, progress.latest)
-        print(f"fuzzyservo: interrupted; population saved to {ckpt_file} "
-              f"(continue with --resume)", file=sys.stderr)
+        print(f"fuzzyservo: interrupted; search state saved to {ckpt_file} after "
+              f"generation {progress.latest.generation} of stage {progress.latest.stage} "
+              f"(continue with the same options and --resume)", file=sys.stderr)
         return 130
     progress.close()
     write_gains_toml(out, tuned)
@@ -173,11 +197,26 @@ def run(args: argparse.Namespace) -> int:
         ckpt_file.unlink()
     gains = ", ".join(f"{k}={v:.6g}" for k, v in tuned.gains.items())
     m = tuned.metrics
-    print(f"{tuned.controller} on the {setup.plant} plant: {gains}")
+    what = tuned.structure
+    named = tuned.controller + (f" (a {what} design)" if what in ("P", "PI", "PD") else "")
+    print(f"{named} on the {setup.plant} plant: {gains}")
     print(f"{setup.objective}={tuned.objective_value:.6g}, overshoot={m['overshoot']:.3g} %, "
           f"rise_time={m['rise_time']:.4g} s, settling_time={m['settling_time']:.4g} s, "
           f"u_max={m['u_max']:.3g}, feasible={'yes' if tuned.feasible else 'no'}, "
+          f"converged={'yes' if tuned.converged else 'no'}, {tuned.generations} generations, "
           f"{tuned.n_evaluations} runs in {tuned.elapsed:.1f} s -> {out}")
+    box = setup.search_bounds()
+    for name, side in tuned.at_bounds.items():
+        i = box.names.index(name)
+        edge = box.lowest()[i] if side == "lower" else box.upper[i]
+        print(f"fuzzyservo: warning: {name} ended on its {side} bound ({edge:g})"
+              + (": the term is switched off" if edge == 0.0 else
+                 ": the optimum may lie outside the search box"), file=sys.stderr)
+    if not tuned.converged:
+        print(f"fuzzyservo: warning: the search did not converge within --maxiter "
+              f"{setup.maxiter} generations per stage (stopping rule: best cost improving "
+              f"by at most {setup.rtol:g} over {setup.patience} generations); raise "
+              f"--maxiter", file=sys.stderr)
     if not tuned.feasible:
         print(f"fuzzyservo: no gains found that meet the constraints; the best found are "
               f"written to {out} (loosen a constraint or widen the search)", file=sys.stderr)

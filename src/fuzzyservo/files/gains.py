@@ -31,7 +31,7 @@ from typing import Any
 import tomli_w
 
 from .._io import read_text, write_text_atomic
-from ..analysis.autotune import StageRecord, TunedGains, TuningSetup
+from ..analysis.autotune import StageRecord, TunedGains, TuningSetup, setup_record
 from ..analysis.tuning import GainBounds, TuningConstraints
 from ..control.fuzzy_pi import KernelSystem
 from ..errors import InputError, ParameterError
@@ -40,17 +40,10 @@ from ..registry import controller_kind
 __all__ = ["FORMAT", "GainsFile", "load_controller", "read_gains_file", "read_gains_toml",
            "write_gains_toml"]
 
-#: Version of the file layout written.
-FORMAT = 1
-
-
-def _constraints_table(c: TuningConstraints) -> dict[str, Any]:
-    out: dict[str, Any] = {"require_settled": c.require_settled}
-    for name in ("max_overshoot", "max_steady_state_error", "max_u"):
-        v = getattr(c, name)
-        if v is not None:
-            out[name] = float(v)
-    return out
+#: Version of the file layout written (2: the stopping rule, convergence, generations and
+#: gains on a bound are recorded; a gain may be 0). Layout 1 files are read; their searches
+#: are reported as not known to have converged.
+FORMAT = 2
 
 
 def write_gains_toml(path: str | Path, tuned: TunedGains) -> Path:
@@ -62,30 +55,25 @@ def write_gains_toml(path: str | Path, tuned: TunedGains) -> Path:
         If the file cannot be written; it is written atomically, so the previous file, if
         any, is then left as it was.
     """
-    s = tuned.setup
-    b = s.search_bounds()
+    tuning = setup_record(tuned.setup)
+    del tuning["controller"]  # the file's top-level key
     doc: dict[str, Any] = {
         "format": FORMAT,
         "controller": tuned.controller,
+        "structure": tuned.structure,
         "gains": dict(tuned.gains),
-        "tuning": {
-            "plant": s.plant, "param_set": s.param_set,
-            "overrides": {k: float(v) for k, v in s.overrides},
-            "start": s.start, "step": s.step, "duration": s.duration, "ts": s.ts,
-            "delay": s.delay, "objective": s.objective, "seed": s.seed,
-            "popsize": s.popsize, "maxiter": s.maxiter, "pid_n": s.pid_n, "polish": s.polish,
-            "constraints": _constraints_table(s.constraints),
-            "bounds": {n: [lo, hi, lg] for n, lo, hi, lg in
-                       zip(b.names, b.lower, b.upper, b.log_scale, strict=True)},
-        },
+        "tuning": tuning,
         "result": {"objective_value": tuned.objective_value, "cost": tuned.cost,
-                   "feasible": tuned.feasible, "elapsed": tuned.elapsed,
-                   "n_evaluations": tuned.n_evaluations,
+                   "feasible": tuned.feasible, "converged": tuned.converged,
+                   "generations": tuned.generations, "n_evaluations": tuned.n_evaluations,
+                   "at_bounds": dict(tuned.at_bounds), "elapsed": tuned.elapsed,
                    "fuzzyservo_version": tuned.version, "date": tuned.date},
         "metrics": dict(tuned.metrics),
         "stages": [{"name": st.name, "gains": dict(st.gains), "metrics": dict(st.metrics),
                     "objective_value": st.objective_value, "feasible": st.feasible,
-                    "n_evaluations": st.n_evaluations} for st in tuned.stages],
+                    "n_evaluations": st.n_evaluations, "generations": st.generations,
+                    "converged": st.converged, "at_bounds": dict(st.at_bounds)}
+                   for st in tuned.stages],
     }
     return write_text_atomic(path, tomli_w.dumps(doc))
 
@@ -134,6 +122,10 @@ def read_gains_toml(path: str | Path) -> TunedGains:
 def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
     """The tuning record of a parsed gains file (see :func:`read_gains_toml`)."""
     rd = _Reader(path)
+    layout = rd.get(doc, "format", int, "") if "format" in doc else 1
+    if layout not in (1, FORMAT):
+        raise InputError(f"{str(path)!r}: gains file layout {layout} is not one this version "
+                         f"reads (1 or {FORMAT})")
     controller = rd.get(doc, "controller", str, "")
     where = f"{str(path)!r}: "
     try:
@@ -160,16 +152,21 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
         if isinstance(bt, dict) and bt:
             names = tuple(bt)
             rows = [bt[n] for n in names]
-            if not all(isinstance(r, list) and len(r) == 3 for r in rows):
+            width = 3 if layout == 1 else 4
+            if not all(isinstance(r, list) and len(r) == width for r in rows):
                 raise InputError(f"{str(path)!r}: tuning.bounds entries must be "
-                                 f"[lower, upper, log_scale]")
+                                 f"[lower, upper, log_scale" + (", may_be_zero]" if width == 4
+                                                                else "]"))
+            rows = [list(r) + [False] * (4 - len(r)) for r in rows]
             for n, r in zip(names, rows, strict=True):
                 b = rd.floats({"lower": r[0], "upper": r[1]}, f"tuning.bounds.{n}.")
                 r[0], r[1] = b["lower"], b["upper"]
                 rd.get({"log_scale": r[2]}, "log_scale", bool, f"tuning.bounds.{n}.")
+                rd.get({"may_be_zero": r[3]}, "may_be_zero", bool, f"tuning.bounds.{n}.")
             bounds = GainBounds(names=names, lower=tuple(float(r[0]) for r in rows),
                                 upper=tuple(float(r[1]) for r in rows),
-                                log_scale=tuple(bool(r[2]) for r in rows))
+                                log_scale=tuple(bool(r[2]) for r in rows),
+                                zero=tuple(bool(r[3]) for r in rows))
         setup = TuningSetup(
             controller=controller, plant=rd.get(tu, "plant", str, w),
             param_set=rd.get(tu, "param_set", str, w),
@@ -181,7 +178,9 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
             constraints=constraints, seed=rd.get(tu, "seed", int, w),
             popsize=rd.get(tu, "popsize", int, w), maxiter=rd.get(tu, "maxiter", int, w),
             pid_n=rd.get(tu, "pid_n", float, w), polish=rd.get(tu, "polish", bool, w),
-            bounds=bounds)
+            bounds=bounds, **({} if layout == 1 else {
+                "patience": rd.get(tu, "patience", int, w),
+                "rtol": rd.get(tu, "rtol", float, w)}))
     except ParameterError as exc:
         raise InputError(f"{str(path)!r}: {exc}") from exc
     res = rd.get(doc, "result", dict, "")
@@ -198,14 +197,35 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
             metrics=rd.floats(rd.get(st, "metrics", dict, sw), sw + "metrics."),
             objective_value=rd.get(st, "objective_value", float, sw),
             feasible=rd.get(st, "feasible", bool, sw),
-            n_evaluations=rd.get(st, "n_evaluations", int, sw)))
+            n_evaluations=rd.get(st, "n_evaluations", int, sw),
+            **({"converged": False} if layout == 1 else {
+                "generations": rd.get(st, "generations", int, sw),
+                "converged": rd.get(st, "converged", bool, sw),
+                "at_bounds": _sides(rd, rd.get(st, "at_bounds", dict, sw),
+                                    sw + "at_bounds.")})))
     return TunedGains(
         controller=controller, gains=gains, metrics=metrics,
         objective_value=rd.get(res, "objective_value", float, w),
         cost=rd.get(res, "cost", float, w), feasible=rd.get(res, "feasible", bool, w),
         setup=setup, elapsed=rd.get(res, "elapsed", float, w),
         n_evaluations=rd.get(res, "n_evaluations", int, w), stages=tuple(stages),
-        version=rd.get(res, "fuzzyservo_version", str, w), date=rd.get(res, "date", str, w))
+        version=rd.get(res, "fuzzyservo_version", str, w), date=rd.get(res, "date", str, w),
+        **({"converged": False} if layout == 1 else {
+            "converged": rd.get(res, "converged", bool, w),
+            "generations": rd.get(res, "generations", int, w),
+            "at_bounds": _sides(rd, rd.get(res, "at_bounds", dict, w), "result.at_bounds.")}))
+
+
+def _sides(rd: _Reader, table: Mapping[str, Any], where: str) -> dict[str, str]:
+    """An ``at_bounds`` table: gain name -> "lower" or "upper"."""
+    out = {}
+    for k in table:
+        v = rd.get(table, k, str, where)
+        if v not in ("lower", "upper"):
+            raise InputError(f"{str(rd.path)!r}: key {where + str(k)!r} must be 'lower' or "
+                             f"'upper', got {v!r}")
+        out[str(k)] = v
+    return out
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -77,6 +77,10 @@ class GainSpec:
         Value while tuning when not searched; None holds the default.
     allow_inf : bool
         ``inf`` is allowed (the derivative filter n: no filter).
+    zero : bool
+        The tuner may also set the gain to exactly 0 (a log-scale gain: below the lower end of
+        its box lies a region meaning 0, :data:`fuzzyservo.analysis.tuning.ZERO_DECADES` wide),
+        so a search can switch the term off instead of stopping at the box's smallest value.
     """
 
     name: str
@@ -88,6 +92,7 @@ class GainSpec:
     per_step: bool = False
     held: float | None = None
     allow_inf: bool = False
+    zero: bool = False
 
     def check(self, value: float, where: str) -> float:
         """``value`` as a float, validated (finite and >= 0; n: > 0 or inf)."""
@@ -230,13 +235,14 @@ class ControllerKind:
             "D" if merged.get("kd", 0.0) != 0.0 else "")
         return terms
 
-    def search_box(self, step: float) -> tuple[tuple[str, float, float, bool], ...]:
-        """The tuner's default box for a step of ``step`` [m]: (name, lower, upper, log)."""
+    def search_box(self, step: float) -> tuple[tuple[str, float, float, bool, bool], ...]:
+        """The tuner's default box for a step of ``step`` [m]: (name, lower, upper, log,
+        may be 0)."""
         out = []
         for g in self.gains:
             if g.search is not None:
                 scale = 1.0 / step if g.per_step else 1.0
-                out.append((g.name, g.search[0] * scale, g.search[1] * scale, g.log))
+                out.append((g.name, g.search[0] * scale, g.search[1] * scale, g.log, g.zero))
         return tuple(out)
 
     def held(self, overrides: Mapping[str, float] | None = None) -> dict[str, float]:
@@ -293,12 +299,16 @@ _PID_OPTIONS = ("anti_windup", "tracking_time", "u_min", "u_max")
 _FUZZY_OPTIONS = ("initial_error", "de_per", "filter_time", "u_min", "u_max")
 
 # Tuning boxes (docs/model.md, "Tuning"): PID gains span decades (log scale); the paper's PIDs
-# (0.5-1.2) sit inside. Fuzzy PI (model-notes §5.3): ke from 1/step (the error fills [-1, 1])
-# to 10/step, kde around the 4e3 that normalises a 0.26 m/s slew per 1 ms sample, two decades
-# either side, kdu up to where kdu kde K_v stays below ~4 1/s.
+# (0.5-1.2) sit inside; ki and kd may also be exactly 0 (a P, PI or PD design is a PID the
+# search may find). Fuzzy PI (model-notes §5.3): ke from 1/step (the paper's step 1: the error
+# fills [-1, 1]; below it the fuzzy PI works in the linear middle of its rule base and is a
+# linear PI) to 10/step, kde around the 4e3 that normalises a 0.26 m/s slew per 1 ms sample,
+# two decades either side, kdu up to where kdu kde K_v stays below ~4 1/s.
 _KP = GainSpec(name="kp", unit="1/m", description="proportional gain", search=(0.01, 100.0))
-_KI = GainSpec(name="ki", unit="1/(m s)", description="integral gain", search=(1e-3, 100.0))
-_KD = GainSpec(name="kd", unit="s/m", description="derivative gain", search=(1e-4, 10.0))
+_KI = GainSpec(name="ki", unit="1/(m s)", description="integral gain", search=(1e-3, 100.0),
+               zero=True)
+_KD = GainSpec(name="kd", unit="s/m", description="derivative gain", search=(1e-4, 10.0),
+               zero=True)
 _N = GainSpec(name="n", unit="1/s", description="derivative filter coefficient (inf: none)",
               default=100.0, allow_inf=True)
 _KE = GainSpec(name="ke", unit="1/m", description="error scaling K_e", search=(1.0, 10.0),
