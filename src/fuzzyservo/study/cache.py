@@ -27,13 +27,14 @@ import numpy as np
 from .._io import atomic_write, npz_inflation
 from .._typing import FloatArray
 from ..sim import SimResult
-from .claims import Claim
+from .claims import Claim, Value
 from .paper_study import ControllerCase, PlantStudy
 
 __all__ = ["CACHE_FORMAT", "CacheEntryError", "load_study", "save_study"]
 
-#: Version of the entry layout; an entry of another layout is stale.
-CACHE_FORMAT = 1
+#: Version of the entry layout; an entry of another layout is stale. 2: claims carry their
+#: rule, thresholds and data (issue 10).
+CACHE_FORMAT = 2
 
 _RUN_FIELDS = ("t", "r", "y", "u", "alpha", "x")
 
@@ -103,6 +104,26 @@ def _floats(d: Any) -> dict[str, float]:
     return {str(k): float(v) for k, v in dict(d).items()}
 
 
+def _value(v: Any) -> Value:
+    """A value of a claim's data as JSON gave it back (number, text, bool, null, list)."""
+    if v is None or isinstance(v, bool | str):
+        return v
+    if isinstance(v, int | float):
+        return float(v) if isinstance(v, float) else int(v)
+    if isinstance(v, list):
+        return [float(x) for x in v]
+    raise CacheEntryError(f"a claim's data holds a {type(v).__name__}")
+
+
+def _claim(c: Any) -> Claim:
+    return Claim(
+        id=str(c["id"]), claim=str(c["claim"]), verdict=str(c["verdict"]),
+        evidence=str(c["evidence"]), plant=str(c["plant"]), rule=str(c["rule"]),
+        thresholds=_floats(c["thresholds"]),
+        data={str(e): {str(k): _value(v) for k, v in dict(fields).items()}
+              for e, fields in dict(c["data"]).items()})
+
+
 def load_study(path: str | Path, *, key: str, version: str) -> PlantStudy:
     """Read an entry written by :func:`save_study`, checking its stamp and every array.
 
@@ -156,9 +177,7 @@ def load_study(path: str | Path, *, key: str, version: str) -> PlantStudy:
                 variant_metrics={str(v): {str(k): _floats(m) for k, m in d.items()}
                                  for v, d in meta["variant_metrics"].items()},
                 variant_runs=variant_runs,
-                claims=[Claim(**{f: str(c[f]) for f in
-                                 ("id", "claim", "verdict", "evidence", "plant")})
-                        for c in meta["claims"]])
+                claims=[_claim(c) for c in meta["claims"]])
     except CacheEntryError:
         raise
     except FileNotFoundError:

@@ -11,7 +11,11 @@ Experiments per plant (all from rest at mid-stroke, a step of ``step`` metres, g
 - the self-tuning fuzzy PI with the hose delay (Fig. 8) and a sweep of the delay for every
   controller, up to where it fails (no 2 % settling within the run, or divergence);
 - every controller on changed plants (load mass x0.5 and x2, oil bulk modulus x0.5, supply
-  pressure -500 kPa, and on the nonlinear plant a +-500 kPa supply ripple), gains fixed (C8).
+  pressure -500 kPa, and on the nonlinear plant a +-500 kPa supply ripple), gains fixed (C8);
+  the self-tuning fuzzy PI's runs there are kept, to tell a limit cycle from a slow response.
+
+A tuned PID-family design is named for the terms its gains use (``ControllerKind.structure``):
+a "1-DOF PID" whose tuned ki and kd are 0 is a P controller and is labelled so.
 """
 
 from __future__ import annotations
@@ -33,7 +37,13 @@ from ..registry import controller_kind, plant_kind
 from ..sim import DEFAULT_DELAY, Plant, SimResult, simulate
 from ..sim.batch import simulate_batch
 from ..sim.references import Step
-from .claims import Claim, evaluate_claims
+from .claims import (
+    Claim,
+    Trace,
+    command_amplitude,
+    evaluate_claims,
+    transient_window,
+)
 
 __all__ = [
     "CONTROLLER_KEYS",
@@ -41,10 +51,13 @@ __all__ = [
     "PlantStudy",
     "StudyConfig",
     "build_controller",
+    "TUNED_AS",
     "TUNED_DESIGNS",
     "build_plant",
+    "design_name",
     "run_plant_study",
     "study_cases",
+    "variants",
 ]
 
 #: The study's controllers, in legend order.
@@ -63,6 +76,11 @@ TUNED_DESIGNS: dict[str, tuple[str, str]] = {
     "stfpi": ("stfpi-os0", "self-tuning fuzzy PI (no overshoot design)"),
     "stfpi_10": ("stfpi", "self-tuning fuzzy PI (<= 10 %, like the PIDs)"),
 }
+
+#: What the tuned PID-family designs were tuned as: study key -> the design's full name.
+#: A design whose gains leave out a term is named for what it is ("P (tuned as a 1-DOF PID,
+#: <= 10 %)"): see :func:`design_name`.
+TUNED_AS: dict[str, str] = {"pid_tuned": "1-DOF PID", "pid2_tuned": "2-DOF PID"}
 
 #: A tuned design as the study takes it: (registered controller name, its gains).
 Design = tuple[str, Mapping[str, float]]
@@ -138,16 +156,27 @@ class ControllerCase:
     gains: dict[str, float]
 
 
-def study_cases(tuned: Mapping[str, Design], pid_filter: float = 100.0
-                ) -> list[ControllerCase]:
+def study_cases(tuned: Mapping[str, Design], pid_filter: float = 100.0, *,
+                paper: Mapping[str, Design] | None = None) -> list[ControllerCase]:
     """The study's controllers: the paper's PIDs and the tuned designs.
 
     ``tuned`` maps each gain-file name of :data:`TUNED_DESIGNS` ("pid", "pid2", "fpi-os0",
     "stfpi-os0", "stfpi") to its design: the registered controller name and its gains. The
-    paper's PIDs are the registry's ``pid`` with the derivative filter ``pid_filter`` [1/s].
+    paper's PIDs are the registry's ``pid`` with the derivative filter ``pid_filter`` [1/s],
+    unless ``paper`` gives them (key of :data:`~fuzzyservo.paper.PAPER_PIDS` -> design; e.g.
+    a ``pid2`` with c = 0, which has no derivative kick). A tuned PID-family design whose
+    gains leave out a term is labelled by its structure (:func:`design_name`).
     """
     cases = []
     for key, g in PAPER_PIDS.items():
+        if paper is not None and key in paper:
+            kind, gains = paper[key]
+            full = controller_kind(kind).check_gains(gains, where=f"paper design {key}: ")
+            label = f"PID ({full['kp']:g}, {full['ki']:g}, {full['kd']:g})"
+            if "c" in full:  # a setpoint-weighted PID says its weights
+                label += f", b = {full['b']:g}, c = {full['c']:g}"
+            cases.append(ControllerCase(key, label, kind, full))
+            continue
         cases.append(ControllerCase(key, f"PID ({g.kp:g}, {g.ki:g}, {g.kd:g})", "pid",
                                     {"kp": g.kp, "ki": g.ki, "kd": g.kd, "n": pid_filter}))
     for key, (name, label) in TUNED_DESIGNS.items():
@@ -155,8 +184,23 @@ def study_cases(tuned: Mapping[str, Design], pid_filter: float = 100.0
             raise ParameterError(f"tuned gains for {name!r} are missing")
         kind, gains = tuned[name]
         full = controller_kind(kind).check_gains(gains, where=f"tuned design {name}: ")
+        structure = controller_kind(kind).structure(full)
+        if key in TUNED_AS and structure != "PID":
+            label = f"{structure} (tuned as a {TUNED_AS[key]}, <= 10 %)"
         cases.append(ControllerCase(key, label, kind, full))
     return cases
+
+
+def design_name(case: ControllerCase) -> str:
+    """A tuned PID-family design named by the terms its gains use: "2-DOF PID" when all
+    three are in use, else e.g. "P (1-DOF PID with ki = kd = 0)"; other cases: their label."""
+    if case.key not in TUNED_AS:
+        return case.label
+    structure = controller_kind(case.kind).structure(case.gains)
+    if structure == "PID":
+        return TUNED_AS[case.key]
+    zero = [g for g in ("ki", "kd") if case.gains.get(g, 0.0) == 0.0]
+    return f"{structure} ({TUNED_AS[case.key]} with {' = '.join(zero)} = 0)"
 
 
 def build_controller(case: ControllerCase, ts: float) -> Any:
@@ -192,10 +236,16 @@ def metrics_dict(res: SimResult, step: float) -> dict[str, float]:
     return m
 
 
-def _batch_metrics(names: Sequence[str], row: FloatArray, step: float) -> dict[str, float]:
+def _batch_metrics(names: Sequence[str], row: FloatArray, step: float,
+                   diverged: bool) -> dict[str, float]:
     m = {n: float(v) for n, v in zip(names, row, strict=True)}
     m["steady_state_error_fraction"] = m["steady_state_error"] / step
+    m["diverged"] = float(diverged)
     return m
+
+
+def _trace(res: SimResult) -> Trace:
+    return res.t, res.y, res.r
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -223,18 +273,26 @@ def _failed(settling: float, diverged: bool) -> bool:
 
 def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
                     *, tick: Callable[[str], None] | None = None,
-                    stfpi_overshoot_limit: float | None = None) -> PlantStudy:
+                    stfpi_overshoot_limit: float | None = None,
+                    changed_plants: Mapping[str, ServoParams] | None = None,
+                    paper: Mapping[str, Design] | None = None) -> PlantStudy:
     """Run every experiment of the study on one plant ("linear" or "nonlinear").
 
     ``tick(stage)`` is called after each stage, for a progress display;
     ``stfpi_overshoot_limit`` [%] is the constraint the self-tuning design was tuned under
-    (it qualifies claim C1).
+    (it qualifies claim C1); ``changed_plants`` (name -> parameters) replaces the changed
+    plants of C8 (default :func:`variants`); ``paper`` replaces designs of the paper's PIDs
+    (see :func:`study_cases`).
     """
     def done(stage: str) -> None:
         if tick is not None:
             tick(stage)
 
-    cases = study_cases(tuned, cfg.pid_filter)
+    cases = study_cases(tuned, cfg.pid_filter, paper=paper)
+    paper_keys = tuple(PAPER_PIDS)
+    # C3's window: ten time constants of the slowest derivative filter of the paper's PIDs
+    after = max(transient_window(float(c.gains.get("n", math.inf)), cfg.ts)
+                for c in cases if c.key in paper_keys)
     plant = build_plant(kind, cfg.params)
     ref = Step(cfg.step)
     runs: dict[str, SimResult] = {}
@@ -243,12 +301,15 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
         ctl = build_controller(case, cfg.ts)
         runs[case.key] = simulate(ctl, plant, ref, duration=cfg.duration, delay=cfg.delay)
         metrics[case.key] = metrics_dict(runs[case.key], cfg.step)
+        metrics[case.key].update(command_amplitude(runs[case.key].t, runs[case.key].u,
+                                                   after=after))
     done(f"{kind}: nominal runs")
 
     st_case = next(c for c in cases if c.key == "stfpi")
     delayed = simulate(build_controller(st_case, cfg.ts), plant, ref, duration=cfg.duration,
                        delay=cfg.fig8_delay)
     delayed_metrics = metrics_dict(delayed, cfg.step)
+    delayed_metrics.update(command_amplitude(delayed.t, delayed.u, after=after))
 
     delays = np.asarray(cfg.delay_sweep, dtype=np.float64)
     sweep: dict[str, dict[str, FloatArray]] = {}
@@ -268,19 +329,22 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
         margins[case.key] = float(delays[first - 1]) if first > 0 else math.nan
     done(f"{kind}: delay sweep")
 
-    var_params = variants(kind, cfg.params)
+    var_params = dict(variants(kind, cfg.params) if changed_plants is None
+                      else changed_plants)
     var_plants = [build_plant(kind, p) for p in var_params.values()]
     var_metrics: dict[str, dict[str, dict[str, float]]] = {v: {} for v in var_params}
     var_runs: dict[str, SimResult] = {}
-    for case in cases:
+    for case in (cases if var_plants else ()):
         ctl = build_controller(case, cfg.ts)
         b = simulate_batch(ctl, np.tile(_gain_row(case), (len(var_plants), 1)),
                            plant=var_plants, reference=ref, duration=cfg.duration,
                            delay=cfg.delay)
         for i, name in enumerate(var_params):
             var_metrics[name][case.key] = _batch_metrics(b.metric_names, b.metrics[i],
-                                                         cfg.step)
+                                                         cfg.step, bool(b.diverged[i]))
     for name, p in zip(var_params, var_plants, strict=True):
+        if var_metrics[name]["stfpi"]["diverged"]:
+            continue  # no trace to keep; the claim reads the batch's divergence flag
         var_runs[name] = simulate(build_controller(st_case, cfg.ts), p, ref,
                                   duration=cfg.duration, delay=cfg.delay)
     done(f"{kind}: changed plants")
@@ -288,11 +352,14 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
     labels = {c.key: c.label for c in cases}
     claims = evaluate_claims(
         kind, metrics, labels, stfpi="stfpi", fpi="fpi",
-        paper_pids=("pid_paper_1", "pid_paper_2"), tuned_pids=("pid_tuned", "pid2_tuned"),
+        paper_pids=paper_keys, tuned_pids=("pid_tuned", "pid2_tuned"),
         alpha_trace=(runs["stfpi"].t, runs["stfpi"].alpha), delayed=delayed_metrics,
         delay=cfg.fig8_delay, delay_margins=margins, variants=var_metrics,
+        duration=cfg.duration, amplitude_after=after,
         stfpi_equal="stfpi_10", delay_failures=failures,
-        stfpi_overshoot_limit=stfpi_overshoot_limit, delay_sweep=tuple(delays))
+        stfpi_overshoot_limit=stfpi_overshoot_limit, delay_sweep=tuple(delays),
+        delayed_trace=_trace(delayed),
+        variant_traces={name: _trace(r) for name, r in var_runs.items()})
     return PlantStudy(plant=kind, cases=tuple(cases), runs=runs, metrics=metrics,
                       delayed=delayed, delayed_metrics=delayed_metrics, delays=delays,
                       sweep=sweep, delay_margins=margins, delay_failures=failures,
