@@ -12,17 +12,98 @@ from typing import Any
 from .._io import atomic_write, strict_json, write_text_atomic
 from ..paper.departures import DEPARTURES
 from ..plant import linearize, to_dict
+from .claims import CLAIM_SHORT, HOLDS, NOT_HOLDS, PARTLY, Claim, summarize
 from .figures import study_figures
-from .paper_study import PlantStudy, StudyConfig
-from .report import Figure, Section, Table, write_html
+from .paper_study import TUNED_AS, PlantStudy, StudyConfig, design_name
+from .report import Details, Figure, Section, Table, Verdict, write_html
 
 __all__ = ["METRIC_COLUMNS", "write_outputs"]
 
-#: Columns of metrics.csv and of the report's metrics tables, with units.
+#: Columns of metrics.csv and of the report's metrics tables, with units. ``u_max_after`` is
+#: the peak |u| after C3's initial transient, ``u_rms`` the RMS of u over the run (C3;
+#: docs/model.md, "How a verdict is reached").
 METRIC_COLUMNS: tuple[tuple[str, str], ...] = (
     ("rise_time", "s"), ("settling_time", "s"), ("overshoot", "%"),
     ("steady_state_error", "m"), ("iae", "m s"), ("itae", "m s^2"), ("u_max", "-"),
+    ("u_max_after", "-"), ("u_rms", "-"),
 )
+
+#: The verdict grid's short forms.
+_SHORT_VERDICT = {HOLDS: "holds", NOT_HOLDS: "does not hold", PARTLY: "partly"}
+
+
+def _anchor(c: Claim) -> str:
+    return f"claim-{c.plant}-{c.id}"
+
+
+def _cell(v: object) -> object:
+    """A value of a claim's data as a table cell (a list of delays in ms, as text)."""
+    if isinstance(v, list):
+        return ", ".join(f"{x * 1e3:.3g}" for x in v) or "none"
+    return "" if v is None else v
+
+
+def _data_tables(c: Claim) -> list[Table]:
+    """A claim's data as tables: entities (controllers, changed plants) that share their
+    fields as rows of one table; an entity with fields of its own as a table of its own,
+    one row a field."""
+    groups: dict[tuple[str, ...], list[str]] = {}
+    for name, d in c.data.items():
+        groups.setdefault(tuple(f for f in d if f != "label"), []).append(name)
+    tables = []
+    for fields, names in groups.items():
+        if len(names) == 1 and len(fields) > 1:
+            d = c.data[names[0]]
+            tables.append(Table([str(d.get("label", names[0])), "value"],
+                                [[f, _cell(d[f])] for f in fields]))
+        else:
+            tables.append(Table(["", *fields], [
+                [c.data[n].get("label", n)] + [_cell(c.data[n].get(f)) for f in fields]
+                for n in names]))
+    return tables
+
+
+def _claim_sections(claims: Sequence[Claim]) -> list[Section]:
+    """The verdict grid (claims x plants) and the evidence, one collapsible block a claim."""
+    plants = list(dict.fromkeys(c.plant for c in claims))
+    by = {(c.id, c.plant): c for c in claims}
+    ids = list(dict.fromkeys(c.id for c in claims))
+    def cell(c: Claim | None) -> object:
+        if c is None:
+            return ""
+        return Verdict(c.verdict, _SHORT_VERDICT.get(c.verdict, c.verdict), _anchor(c))
+
+    grid: list[list[object]] = [[i, CLAIM_SHORT.get(i, "")]
+                                + [cell(by.get((i, p))) for p in plants] for i in ids]
+    details = [Details(
+        _anchor(c), [f"{c.id}, {c.plant} plant: ", Verdict(c.verdict), f" - {c.claim}"],
+        paragraphs=[("Rule:", c.rule), ("Evidence:", c.evidence)],
+        tables=_data_tables(c))
+        for i in ids for p in plants if (c := by.get((i, p))) is not None]
+    return [
+        Section("Verdicts", tables=[Table(["id", "claim", *plants], grid)], paragraphs=[
+            "Claims as rows, plants as columns; 'partly' is 'holds under stated "
+            "conditions'. Each cell links to its evidence below."]),
+        Section("Evidence per claim", details=details, paragraphs=[
+            "Each verdict is computed from the simulations of this run; open a claim for "
+            "the rule, the evidence and the numbers behind it (also in claims.json; SI "
+            "units, delays in lists in ms)."]),
+    ]
+
+
+def _metrics_caption(s: PlantStudy) -> str:
+    after = next((c.thresholds.get("window_start_s") for c in s.claims if c.id == "C3"), None)
+    return ("Step metrics (4 significant digits; metrics.csv has every digit); u_max_after: "
+            "peak |u| " + (f"from {after:g} s " if after is not None else "")
+            + "after the step, past the PIDs' derivative kick; u_rms: RMS of u over the run")
+
+
+def _summary(studies: Sequence[PlantStudy]) -> str:
+    comparisons = {}
+    for s in studies:
+        tuned = {design_name(c): s.metrics[c.key] for c in s.cases if c.key in TUNED_AS}
+        comparisons[s.plant] = (s.metrics["stfpi"], tuned)
+    return " ".join(summarize([c for s in studies for c in s.claims], comparisons))
 
 
 def _fmt_gains(g: Mapping[str, float], *, exact: bool = False) -> str:
@@ -69,13 +150,18 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
     metrics_csv = out / "metrics.csv"
     with atomic_write(metrics_csv) as fh:
         w = csv.writer(fh, lineterminator="\n")
-        w.writerow(["plant", "controller", "label", "gains"]
+        w.writerow(["plant", "controller", "label", "gains", "delay [s]"]
                    + [f"{n} [{u}]" for n, u in METRIC_COLUMNS])
         for s in studies:
             for c in s.cases:
                 m = s.metrics[c.key]
-                w.writerow([s.plant, c.key, c.label, _fmt_gains(c.gains, exact=True)]
+                w.writerow([s.plant, c.key, c.label, _fmt_gains(c.gains, exact=True),
+                            repr(float(s.runs[c.key].delay))]
                            + [repr(float(m[n])) for n, _ in METRIC_COLUMNS])
+            st = next(c for c in s.cases if c.key == "stfpi")  # Fig. 8 and claim C6
+            w.writerow([s.plant, st.key, f"{st.label}, {s.delayed.delay * 1e3:g} ms hose delay",
+                        _fmt_gains(st.gains, exact=True), repr(float(s.delayed.delay))]
+                       + [repr(float(s.delayed_metrics[n])) for n, _ in METRIC_COLUMNS])
     written.append(metrics_csv)
 
     claims = [c.as_dict() for s in studies for c in s.claims]
@@ -83,21 +169,14 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
     written.append(claims_json)
     written.extend(fig3)
 
-    sections: list[Section] = []
+    sections: list[Section] = [Section("Summary", summary=_summary(studies))]
     if notices:
         sections.append(Section("Conditions of this run", items=list(notices)))
-    sections.append(Section(
-        "Claims of the paper, tested",
-        paragraphs=["Each verdict is computed from the simulations below at run time. "
-                    "'Holds under stated conditions' means the evidence supports only part "
-                    "of the claim, named in the evidence."],
-        tables=[Table(["id", "plant", "claim", "verdict", "evidence"],
-                      [[c["id"], c["plant"], c["claim"], c["verdict"], c["evidence"]]
-                       for c in claims])]))
+    sections.extend(_claim_sections([c for s in studies for c in s.claims]))
     for s in studies:
         rows = [[c.label] + [s.metrics[c.key][n] for n, _ in METRIC_COLUMNS]
                 for c in s.cases]
-        rows.append([f"self-tuning fuzzy PI, {cfg.fig8_delay * 1e3:g} ms delay"]
+        rows.append([f"self-tuning fuzzy PI, {s.delayed.delay * 1e3:g} ms hose delay"]
                     + [s.delayed_metrics[n] for n, _ in METRIC_COLUMNS])
         margin_rows = [[c.label, s.delay_margins[c.key] * 1e3 if not
                         math.isnan(s.delay_margins[c.key]) else "fails without delay",
@@ -108,7 +187,7 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
             paragraphs=[f"Step of {cfg.step * 1e3:g} mm from mid-stroke, {cfg.duration:g} s, "
                         f"controller sample time {cfg.ts * 1e3:g} ms, no delay unless stated."],
             tables=[Table(["controller"] + [f"{n} [{u}]" for n, u in METRIC_COLUMNS], rows,
-                          caption="Step metrics"),
+                          caption=_metrics_caption(s)),
                     Table(["controller", "settles at every delay up to [ms]",
                            "fails (no 2 % settling in the run) at [ms]"], margin_rows,
                           caption="Delay sweep, gains fixed")],

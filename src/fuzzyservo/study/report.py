@@ -15,7 +15,15 @@ from pathlib import Path
 
 from .._io import write_text_atomic
 
-__all__ = ["Figure", "Section", "Table", "render_html", "write_html"]
+__all__ = ["VERDICT_CLASSES", "Details", "Figure", "Section", "Table", "Verdict",
+           "render_html", "write_html"]
+
+#: CSS class of each verdict (the colour it is shown in).
+VERDICT_CLASSES: dict[str, str] = {
+    "holds": "holds",
+    "does not hold": "does-not-hold",
+    "holds under stated conditions": "holds-under-stated-conditions",
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -27,8 +35,19 @@ class Figure:
 
 
 @dataclass(frozen=True, slots=True)
+class Verdict:
+    """A verdict shown in its colour: ``text`` (e.g. a short form of ``verdict``), linking to
+    ``#href`` when given."""
+
+    verdict: str
+    text: str = ""
+    href: str = ""
+
+
+@dataclass(frozen=True, slots=True)
 class Table:
-    """A table: header and rows of cells (numbers are formatted with 4 significant digits)."""
+    """A table: header and rows of cells (numbers are formatted with 4 significant digits;
+    a :class:`Verdict` cell is coloured and may link)."""
 
     header: Sequence[str]
     rows: Sequence[Sequence[object]]
@@ -36,14 +55,28 @@ class Table:
 
 
 @dataclass(frozen=True, slots=True)
+class Details:
+    """A collapsible block (HTML ``<details>``): a one-line summary of text and verdicts,
+    opened to paragraphs (label, text) and tables; ``anchor`` is its id for links."""
+
+    anchor: str
+    summary: Sequence[str | Verdict]
+    paragraphs: Sequence[tuple[str, str]] = ()
+    tables: Sequence[Table] = ()
+
+
+@dataclass(frozen=True, slots=True)
 class Section:
-    """A titled section of paragraphs, tables and figures, rendered in that order."""
+    """A titled section: a highlighted ``summary`` paragraph, paragraphs, items, tables,
+    collapsible details and figures, rendered in that order."""
 
     title: str
     paragraphs: Sequence[str] = ()
     tables: Sequence[Table] = ()
     figures: Sequence[Figure] = ()
     items: Sequence[str] = field(default=())
+    details: Sequence[Details] = ()
+    summary: str = ""
 
 
 _CSS = """
@@ -58,6 +91,12 @@ figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
 figcaption{font-size:.9em;color:#555}.holds{color:#1a7f37;font-weight:600}
 .does-not-hold{color:#b42318;font-weight:600}.holds-under-stated-conditions{color:#9a6700;font-weight:600}
 caption{caption-side:top;text-align:left;font-weight:600;padding:.3em 0}
+td.v-holds{background:#e7f5ea}td.v-does-not-hold{background:#fce8e6}
+td.v-holds-under-stated-conditions{background:#fff4d6}td a{color:inherit}
+details{border:1px solid #ddd;border-radius:4px;margin:.4em 0;padding:.3em .6em}
+details[open]{background:#fafafa}summary{cursor:pointer}
+details table{display:block;overflow-x:auto;max-width:100%}
+p.summary{font-size:1.05em;background:#f4f6fa;border-left:4px solid #4a6fa5;padding:.6em .9em}
 """
 
 
@@ -78,6 +117,27 @@ def _fmt(value: object) -> tuple[str, bool]:
     return str(value), False
 
 
+def _verdict(v: Verdict, tag: str = "span") -> str:
+    cls = VERDICT_CLASSES.get(v.verdict, "")
+    text = html.escape(v.text or v.verdict)
+    if v.href:
+        text = f'<a href="#{html.escape(v.href)}">{text}</a>'
+    if tag == "td":
+        return f'<td class="{cls} v-{cls}">{text}</td>'
+    return f'<span class="{cls}">{text}</span>'
+
+
+def _details(d: Details) -> str:
+    head = "".join(_verdict(p) if isinstance(p, Verdict) else html.escape(p)
+                   for p in d.summary)
+    out = [f'<details id="{html.escape(d.anchor)}"><summary>{head}</summary>']
+    out.extend(f"<p><b>{html.escape(label)}</b> {html.escape(text)}</p>"
+               for label, text in d.paragraphs)
+    out.extend(_table(t) for t in d.tables)
+    out.append("</details>")
+    return "\n".join(out)
+
+
 def _table(t: Table) -> str:
     out = ["<table>"]
     if t.caption:
@@ -86,12 +146,15 @@ def _table(t: Table) -> str:
     for row in t.rows:
         cells = []
         for v in row:
+            if isinstance(v, Verdict):
+                cells.append(_verdict(v, "td"))
+                continue
             text, num = _fmt(v)
             cls = ""
             if num:
                 cls = ' class="num"'
-            elif text in ("holds", "does not hold", "holds under stated conditions"):
-                cls = f' class="{text.replace(" ", "-")}"'
+            elif text in VERDICT_CLASSES:
+                cls = f' class="{VERDICT_CLASSES[text]}"'
             cells.append(f"<td{cls}>{html.escape(text)}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
     out.append("</table>")
@@ -115,11 +178,14 @@ def render_html(title: str, sections: Sequence[Section],
                                          for k, v in meta.items()) + "</p>")
     for s in sections:
         parts.append(f"<h2>{html.escape(s.title)}</h2>")
+        if s.summary:
+            parts.append(f'<p class="summary">{html.escape(s.summary)}</p>')
         parts.extend(f"<p>{html.escape(p)}</p>" for p in s.paragraphs)
         if s.items:
             parts.append("<ul>" + "".join(f"<li>{html.escape(i)}</li>" for i in s.items)
                          + "</ul>")
         parts.extend(_table(t) for t in s.tables)
+        parts.extend(_details(d) for d in s.details)
         parts.extend(_figure(f) for f in s.figures)
     parts.append("</body></html>")
     return "\n".join(parts)
