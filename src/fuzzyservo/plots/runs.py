@@ -14,15 +14,17 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from .._io import atomic_write
 from .._typing import FloatArray
 from ..analysis.step_metrics import Run, step_metrics
 from ..errors import InputError
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["FIGURE_FORMATS", "RunCurve", "run_curves", "runs_figure", "save_figure"]
 
@@ -120,6 +122,9 @@ def runs_figure(runs: Sequence[Run], labels: Sequence[str] | None = None, *,
 
     Parameters as :func:`run_curves`; ``title`` heads the figure.
     """
+    # imported when drawing, so that importing fuzzyservo.plots does not load matplotlib
+    from matplotlib.figure import Figure
+
     curves = run_curves(runs, labels, metrics=metrics, relative=relative)
     with_alpha = any(c.alpha is not None for c in curves)
     n_rows = 3 if with_alpha else 2

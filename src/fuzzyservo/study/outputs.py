@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import csv
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -114,11 +114,14 @@ def _fmt_gains(g: Mapping[str, float], *, exact: bool = False) -> str:
 def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                   fig3: Sequence[Path], tuning_notes: Mapping[str, str],
                   meta: Mapping[str, str], *, written: list[Path] | None = None,
-                  notices: Sequence[str] = ()) -> dict[str, Path]:
+                  notices: Sequence[str] = (),
+                  figures_reused: Collection[str] = ()) -> dict[str, Path]:
     """Write every output of the study into ``out`` and return the main paths.
 
     Every file is written atomically; ``written`` (if given) receives each path, the report
     last. ``notices`` are shown at the top of the report (the overrides in force, ...).
+    ``figures_reused`` names the plants whose figure files a previous run drew from the same
+    inputs: they are listed, not drawn again (``study.figures.study_figures``).
     """
     if written is None:
         written = []
@@ -191,7 +194,8 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                     Table(["controller", "settles at every delay up to [ms]",
                            "fails (no 2 % settling in the run) at [ms]"], margin_rows,
                           caption="Delay sweep, gains fixed")],
-            figures=study_figures(s, cfg, out, written)))
+            figures=study_figures(s, cfg, out, written,
+                                  reuse=s.plant in figures_reused)))
     sections.append(Section(
         "Fig. 3: membership functions and control surfaces",
         figures=[Figure(p, p.stem.replace("_", " ")) for p in fig3 if p.suffix == ".png"]))

@@ -24,6 +24,7 @@ import datetime as _dt
 import fcntl
 import functools
 import hashlib
+import importlib.metadata
 import json
 import os
 import warnings
@@ -39,10 +40,11 @@ from ..errors import InputError
 from ..files import read_gains_toml, write_gains_toml
 from ..paper import alpha_system, du_system, named_set
 from ..plant import ServoParams, to_dict
-from ..plots.figures import fig3
+from ..plots.figures import fig3, fig3_files
 from ..registry import controller_kind
 from .cache import CacheEntryError, load_study, save_study
 from .claims import NO_OVERSHOOT_PCT
+from .figures import figure_files, reusable
 from .outputs import write_outputs
 from .paper_study import TUNED_DESIGNS, PlantStudy, StudyConfig, run_plant_study
 from .report import Section, write_html
@@ -127,6 +129,32 @@ def _code_digest() -> str:
         h.update(path.relative_to(root).as_posix().encode())
         h.update(path.read_bytes())
     return h.hexdigest()
+
+
+#: Formats of Fig. 3's files.
+FIG3_FORMATS: tuple[str, ...] = ("png", "svg")
+
+
+def _figure_key(group: str, version: str, cfg: StudyConfig | None = None,
+                gains: Sequence[Path] = ()) -> str:
+    """Digest of everything a figure group is drawn from: the package's source and version,
+    matplotlib's version, and for a plant's figures the inputs of its study (parameters,
+    settings, the gain files' contents), as :func:`_cache_key` has them."""
+    blob: dict[str, Any] = {"group": group, "version": version, "code": _code_digest(),
+                            "matplotlib": _matplotlib_version()}
+    if cfg is not None:
+        blob.update(params=to_dict(cfg.params), config=_settings(cfg),
+                    gains={p.name: sha256_file(p) for p in gains})
+    text = json.dumps(blob, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _matplotlib_version() -> str:
+    """matplotlib's version, read from its metadata (importing it would cost a second)."""
+    try:
+        return importlib.metadata.version("matplotlib")
+    except importlib.metadata.PackageNotFoundError:
+        return "?"
 
 
 def _settings(cfg: StudyConfig) -> dict[str, Any]:
@@ -350,13 +378,28 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
         + "; ".join(f"{k} = {v!r} (the set has {base[k]!r})" for k, v in overrides.items())
         if overrides else ", with no override.")]
 
+    # figures drawn by the previous run from the same inputs are kept, not drawn again:
+    # its manifest is read before begin_writing() replaces it (with --retune it already
+    # has, and everything is drawn)
+    before = _read_manifest(out)
     begin_writing()
     written: list[Path] = []
-    fig3_paths = fig3(du_system(), alpha_system(), out, formats=("png", "svg"))
+    gains_src = out / "gains" if retune_gains else Path(gains_dir or default_gains_dir())
+    figure_keys = {"fig3": _figure_key("fig3", version)}
+    figure_keys.update({plant: _figure_key(plant, version, cfg, _gain_paths(plant, gains_src))
+                        for plant in plants})
+    figure_groups = {"fig3": fig3_files(out, FIG3_FORMATS)}
+    figure_groups.update({plant: figure_files(plant, out) for plant in plants})
+    kept = {g for g, files in figure_groups.items()
+            if not force and reusable(before, out, g, figure_keys[g], files)}
+    if "fig3" in kept:
+        fig3_paths = figure_groups["fig3"]
+    else:
+        fig3_paths = fig3(du_system(), alpha_system(), out, formats=FIG3_FORMATS)
     if progress is not None:
-        progress("figure 3")
+        progress("figure 3" + (" (kept)" if "fig3" in kept else ""))
     paths = write_outputs(out, cfg, studies, fig3_paths, notes, shown, written=written,
-                          notices=notices)
+                          notices=notices, figures_reused=kept)
     if progress is not None:
         progress("figures, tables and report")
     rels = [p.relative_to(out).as_posix() for p in written]
@@ -375,6 +418,10 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
         "settings": _settings(cfg),
         "gains": {name: {"sha256": sha256_file(p)} for name, p in gains_used.items()},
         "outputs": {rel: sha256_file(out / rel) for rel in rels},
+        # the inputs each figure group was drawn from (a later run keeps them if equal)
+        "figures": {g: {"key": figure_keys[g],
+                        "files": [p.relative_to(out).as_posix() for p in files]}
+                    for g, files in figure_groups.items()},
     }
     paths["manifest"] = write_text_atomic(out / MANIFEST, strict_json(manifest, indent=2)
                                           + "\n")
