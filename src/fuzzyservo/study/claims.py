@@ -689,12 +689,13 @@ def summarize(claims: Sequence[Claim],
         def every(verdict: str) -> list[str]:
             return [i for i in ids if all(c.verdict == verdict for c in claims if c.id == i)]
         bits = []
-        for verdict, words in ((NOT_HOLDS, ("does not hold", "do not hold")),
-                               (HOLDS, ("holds", "hold"))):
+        for verdict, words in ((NOT_HOLDS, ("does not hold on any plant",
+                                            "do not hold on any plant")),
+                               (HOLDS, ("holds on every plant", "hold on every plant"))):
             same = every(verdict)
             if same:
                 bits.append(_join([f"{i} ({CLAIM_SHORT.get(i, i)})" for i in same])
-                            + f" {words[len(same) > 1]} on every plant")
+                            + f" {words[len(same) > 1]}")
         if bits:
             s = "; ".join(bits)
             out.append(s[0].upper() + s[1:] + ".")
