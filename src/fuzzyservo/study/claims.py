@@ -390,8 +390,9 @@ def evaluate_claims(
     delay : float
         That delay [s].
     delay_margins : mapping
-        Controller key -> largest delay [s] of the sweep at which it still meets
-        (settles, overshoot <= 10 %).
+        Controller key -> largest delay [s] of the sweep before its first failure (no 2 %
+        settling within the run, or divergence; the sweep does not judge overshoot); NaN
+        when it fails already at the first delay.
     variants : mapping
         Changed plant (e.g. "load mass x2") -> controller key -> metrics, gains fixed; a
         ``diverged`` entry (nonzero) marks a diverged run.
