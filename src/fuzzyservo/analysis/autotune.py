@@ -272,7 +272,7 @@ def default_bounds(controller: str, step: float = 0.1) -> GainBounds:
     """The registry's search box of ``controller`` for a step of ``step`` [m].
 
     See :class:`fuzzyservo.registry.GainSpec`: PID gains on log scales (kp 0.01-100 1/m,
-    ki 0 or 1e-3-100 1/(m s), kd 0 or 1e-4-10 s/m), pid2's b in [0, 1] linear; the fuzzy PIs'
+    ki 0 or 1e-3-1000 1/(m s), kd 0 or 1e-4-10 s/m), pid2's b in [0, 1] linear; the fuzzy PIs'
     ke in [0.1, 100]/step 1/m, kde in [10, 1e6] per sample, kdu in [1e-5, 1] (docs/model.md,
     "Tuning").
     """

@@ -50,7 +50,8 @@ from .paper_study import TUNED_DESIGNS, PlantStudy, StudyConfig, run_plant_study
 from .report import Section, write_html
 
 __all__ = ["GAIN_FILES", "MANIFEST", "PLANTS", "CacheWarning", "default_gains_dir",
-           "folder_status", "load_tuned", "overrides_in_force", "reproduce", "retune"]
+           "folder_status", "load_tuned", "overrides_in_force", "reproduce", "retune",
+           "study_jobs"]
 
 #: The output folder's manifest, written last.
 MANIFEST = "manifest.json"
@@ -87,26 +88,32 @@ def _gain_paths(plant: str, gains_dir: Path) -> list[Path]:
     return [Path(gains_dir) / f"{plant}-{name}.toml" for name in GAIN_FILES]
 
 
-def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
-           progress: Callable[[str], None] | None = None) -> dict[str, TunedGains]:
-    """Tune every design of the study on ``plant`` afresh and write the gain files.
+def study_jobs(plant: str, set_name: str) -> list[tuple[str, TuningSetup]]:
+    """The tunings behind the study's gain files of ``plant``: (file name, setup).
 
     PIDs (1-DOF, 2-DOF) and one self-tuning fuzzy PI are tuned like the paper's PID (ITAE,
-    <= 10 % overshoot, no steady-state error); the fuzzy PI and self-tuning fuzzy PI of the
-    figures are tuned for the behaviour the paper reports for them (no overshoot, read as
-    <= NO_OVERSHOOT_PCT %), by the paper's steps 1-3. Seed 0 throughout.
+    <= 10 % overshoot, no steady-state error); the self-tuning fuzzy PI of the figures is
+    tuned for the behaviour the paper reports for it (no overshoot, read as
+    <= NO_OVERSHOOT_PCT %), by the paper's steps 1-3 (step 1 gives the fuzzy PI's file).
+    Default tuner settings (converged searches), seed 0.
     """
-    gains_dir.mkdir(parents=True, exist_ok=True)
-    out: dict[str, TunedGains] = {}
     no_os = TuningConstraints(max_overshoot=NO_OVERSHOOT_PCT)
-    jobs: list[tuple[str, TuningSetup]] = [
+    return [
         ("pid", TuningSetup(controller="pid", plant=plant, param_set=set_name)),
         ("pid2", TuningSetup(controller="pid2", plant=plant, param_set=set_name)),
         ("stfpi", TuningSetup(controller="stfpi", plant=plant, param_set=set_name)),
         ("stfpi-os0", TuningSetup(controller="stfpi", plant=plant, param_set=set_name,
                                   constraints=no_os)),
     ]
-    for name, setup in jobs:
+
+
+def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
+           progress: Callable[[str], None] | None = None) -> dict[str, TunedGains]:
+    """Tune every design of the study on ``plant`` afresh (:func:`study_jobs`) and write
+    the gain files (the fuzzy PI's is step 1 of the self-tuning run)."""
+    gains_dir.mkdir(parents=True, exist_ok=True)
+    out: dict[str, TunedGains] = {}
+    for name, setup in study_jobs(plant, set_name):
         tuned = tune_controller(setup, params)
         out[name] = tuned
         write_gains_toml(gains_dir / f"{plant}-{name}.toml", tuned)
