@@ -127,7 +127,8 @@ def test_interrupted_and_resumed_tuning_equals_the_uninterrupted_one(
         assert (ck.stage, ck.generation) == (stage, gen)
         seen: list[tuple[str, int]] = []
 
-        def watch(*a: Any, progress: Any, **kw: Any) -> Any:
+        def watch(*a: Any, progress: Any, seen: list[tuple[str, int]] = seen,
+                  **kw: Any) -> Any:
             def note(p: TuningProgress) -> None:
                 seen.append((p.stage, p.generation))
                 progress(p)
