@@ -4,21 +4,21 @@ from a :class:`~fuzzyservo.study.paper_study.PlantStudy` into PNG + SVG files.
 Every figure, its file name and its caption are planned from the study first
 (:func:`figure_plan`); drawing is the last step and can be skipped: ``study_figures(...,
 reuse=True)`` lists the files a previous run drew from the same inputs (the runner checks
-them) and returns the same captions, without loading matplotlib. Captions are plain text
-(the report escapes them): symbols in Unicode, never a literal underscore.
+them, ``study.reuse.reusable``) and returns the same captions, without loading matplotlib.
+Captions are plain text (the report escapes them): symbols in Unicode, never a literal
+underscore.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .._io import sha256_file
 from ..plots.study_figures import (
     Curve,
     alpha_figure,
@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure as Drawing
 
 __all__ = ["FIGURE_STEMS", "NEAR_FRACTION", "OVERSHOOT_LIMIT_PCT", "PlannedFigure",
-           "figure_files", "figure_plan", "reusable", "study_figures"]
+           "figure_files", "figure_plan", "study_figures"]
 
 #: The figures of one plant, without the ``_{plant}`` suffix, in the report's order.
 FIGURE_STEMS: tuple[str, ...] = ("fig4", "fig5", "fig6", "fig7", "fig8",
@@ -193,25 +193,6 @@ def figure_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:
         lambda: step_figure(curves, f"Changed plants ({p}): self-tuning fuzzy PI, gains fixed",
                             y0=y0))
     return plan
-
-
-def reusable(previous: Mapping[str, Any] | None, out: Path, group: str, key: str,
-             files: Sequence[Path]) -> bool:
-    """Whether ``files`` (a figure group: a plant's figures, or Fig. 3) can be taken as they
-    are from the run that wrote ``previous`` (its manifest): that run finished, drew the
-    group from the same inputs (``key``), and every file still has the SHA-256 it recorded.
-    """
-    if not previous or previous.get("complete") is not True:
-        return False
-    record = (previous.get("figures") or {}).get(group)
-    outputs = previous.get("outputs")
-    if not isinstance(record, dict) or not isinstance(outputs, dict):
-        return False
-    rels = [p.relative_to(out).as_posix() for p in files]
-    if record.get("key") != key or record.get("files") != rels:
-        return False
-    return all(p.is_file() and outputs.get(rel) == sha256_file(p)
-               for p, rel in zip(files, rels, strict=True))
 
 
 def study_figures(study: PlantStudy, cfg: StudyConfig, out: Path, written: list[Path], *,

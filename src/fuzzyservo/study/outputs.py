@@ -7,7 +7,6 @@ import csv
 import math
 from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
-from typing import Any
 
 from .._io import atomic_write, strict_json, write_text_atomic
 from ..paper.departures import DEPARTURES
@@ -17,7 +16,7 @@ from .figures import study_figures
 from .paper_study import TUNED_AS, PlantStudy, StudyConfig, design_name
 from .report import Details, Figure, Section, Table, Verdict, write_html
 
-__all__ = ["METRIC_COLUMNS", "write_outputs"]
+__all__ = ["METRIC_COLUMNS", "trace_files", "write_outputs"]
 
 #: Columns of metrics.csv and of the report's metrics tables, with units. ``u_max_after`` is
 #: the peak |u| after C3's initial transient, ``u_rms`` the RMS of u over the run (C3;
@@ -111,44 +110,56 @@ def _fmt_gains(g: Mapping[str, float], *, exact: bool = False) -> str:
     return ", ".join(f"{k} = {v!r}" if exact else f"{k} = {v:.5g}" for k, v in g.items())
 
 
+def trace_files(study: PlantStudy, out: Path) -> list[Path]:
+    """Every file :func:`write_outputs` writes into ``out/traces`` for ``study``, in order:
+    one CSV a run (the designs, the hose-delay run, the changed plants), then the sweep."""
+    p = study.plant
+    names = [f"{p}_{key}.csv" for key in study.runs]
+    names.append(f"{p}_stfpi_delay.csv")
+    names.extend(f"{p}_stfpi_variant{i}.csv" for i in range(len(study.variant_runs)))
+    names.append(f"{p}_delay_sweep.csv")
+    return [Path(out) / "traces" / n for n in names]
+
+
+def _write_traces(study: PlantStudy, files: Sequence[Path]) -> None:
+    """Write the trace CSVs of ``study`` to ``files`` (:func:`trace_files`' order)."""
+    runs = [*study.runs.values(), study.delayed, *study.variant_runs.values()]
+    for run, path in zip(runs, files[:-1], strict=True):
+        run.to_csv(path)
+    with atomic_write(files[-1]) as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(["controller", "delay", "overshoot", "settling_time", "iae", "u_max",
+                    "diverged"])
+        for key, sw in study.sweep.items():
+            for j, dly in enumerate(study.delays):
+                w.writerow([key, repr(float(dly))] + [repr(float(sw[c][j])) for c in
+                           ("overshoot", "settling_time", "iae", "u_max", "diverged")])
+
+
 def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                   fig3: Sequence[Path], tuning_notes: Mapping[str, str],
                   meta: Mapping[str, str], *, written: list[Path] | None = None,
                   notices: Sequence[str] = (),
-                  figures_reused: Collection[str] = ()) -> dict[str, Path]:
+                  figures_reused: Collection[str] = (),
+                  traces_reused: Collection[str] = ()) -> dict[str, Path]:
     """Write every output of the study into ``out`` and return the main paths.
 
     Every file is written atomically; ``written`` (if given) receives each path, the report
     last. ``notices`` are shown at the top of the report (the overrides in force, ...).
     ``figures_reused`` names the plants whose figure files a previous run drew from the same
     inputs: they are listed, not drawn again (``study.figures.study_figures``).
+    ``traces_reused`` names the plants whose trace CSVs (:func:`trace_files`) a previous run
+    wrote from the same study: they are listed, not written again.
     """
     if written is None:
         written = []
     out.mkdir(parents=True, exist_ok=True)
-    traces = out / "traces"
-    traces.mkdir(exist_ok=True)
-
-    def trace(run: Any, name: str) -> None:
-        run.to_csv(traces / name)
-        written.append(traces / name)
-
+    (out / "traces").mkdir(exist_ok=True)
     for s in studies:
-        for key, run in s.runs.items():
-            trace(run, f"{s.plant}_{key}.csv")
-        trace(s.delayed, f"{s.plant}_stfpi_delay.csv")
-        for i, run in enumerate(s.variant_runs.values()):
-            trace(run, f"{s.plant}_stfpi_variant{i}.csv")
-        sweep_csv = traces / f"{s.plant}_delay_sweep.csv"
-        with atomic_write(sweep_csv) as fh:
-            w = csv.writer(fh, lineterminator="\n")
-            w.writerow(["controller", "delay", "overshoot", "settling_time", "iae", "u_max",
-                        "diverged"])
-            for key, sw in s.sweep.items():
-                for j, dly in enumerate(s.delays):
-                    w.writerow([key, repr(float(dly))] + [repr(float(sw[c][j])) for c in
-                               ("overshoot", "settling_time", "iae", "u_max", "diverged")])
-        written.append(sweep_csv)
+        files = trace_files(s, out)
+        if s.plant not in traces_reused:
+            _write_traces(s, files)
+        written.extend(files)
 
     metrics_csv = out / "metrics.csv"
     with atomic_write(metrics_csv) as fh:

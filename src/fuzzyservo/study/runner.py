@@ -13,7 +13,10 @@ first output is touched, the report is replaced by a page saying the folder is i
 the manifest is marked ``"complete": false``; a run interrupted after that point leaves a
 folder that :func:`folder_status`, the next ``reproduce`` and the report all call incomplete.
 Outputs that the previous manifest listed and this run does not write are removed, so the
-folder never mixes two runs.
+folder never mixes two runs. Figures and trace CSVs that the previous, finished run made from
+the same inputs, still with the SHA-256 it recorded, are kept instead of made again
+(:mod:`fuzzyservo.study.reuse`); once the manifest is written, the cache entries of the
+plants just run that other inputs wrote are removed.
 """
 
 from __future__ import annotations
@@ -23,10 +26,12 @@ import dataclasses
 import datetime as _dt
 import fcntl
 import functools
+import glob
 import hashlib
 import importlib.metadata
 import json
 import os
+import re
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from importlib import resources
@@ -44,10 +49,11 @@ from ..plots.figures import fig3, fig3_files
 from ..registry import controller_kind
 from .cache import CacheEntryError, load_study, save_study
 from .claims import NO_OVERSHOOT_PCT
-from .figures import figure_files, reusable
-from .outputs import write_outputs
+from .figures import figure_files
+from .outputs import trace_files, write_outputs
 from .paper_study import TUNED_DESIGNS, PlantStudy, StudyConfig, run_plant_study
 from .report import Section, write_html
+from .reuse import Digests, reusable
 
 __all__ = ["GAIN_FILES", "MANIFEST", "PLANTS", "CacheWarning", "default_gains_dir",
            "folder_status", "load_tuned", "overrides_in_force", "reproduce", "retune",
@@ -222,7 +228,10 @@ def folder_status(out: str | Path) -> tuple[str, list[str]]:
     output it lists has its recorded SHA-256), ``"incomplete"`` (``problems`` says why) or
     ``"empty"`` (no manifest and no report).
     """
-    out = Path(out)
+    return _folder_status(Path(out), sha256_file)
+
+
+def _folder_status(out: Path, digest: Callable[[Path], str]) -> tuple[str, list[str]]:
     doc = _read_manifest(out)
     if doc is None:
         if (out / MANIFEST).exists():
@@ -236,11 +245,11 @@ def folder_status(out: str | Path) -> tuple[str, list[str]]:
                               f"did not finish"]
     problems = []
     outputs = doc.get("outputs")
-    for rel, digest in (outputs.items() if isinstance(outputs, dict) else ()):
+    for rel, recorded in (outputs.items() if isinstance(outputs, dict) else ()):
         p = out / rel
         if not p.is_file():
             problems.append(f"{rel} is missing")
-        elif sha256_file(p) != digest:
+        elif digest(p) != recorded:
             problems.append(f"{rel} differs from the manifest")
     return ("complete" if not problems else "incomplete"), problems
 
@@ -325,7 +334,8 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
             warnings.warn(message, CacheWarning, stacklevel=4)
 
     _clean_temporaries(out)
-    status, problems = folder_status(out)
+    digests = Digests()  # each file hashed once: the check below, the reuse, the manifest
+    status, problems = _folder_status(out, digests)
     if status == "incomplete":
         say(f"{str(out)!r} is incomplete ({problems[0]}); writing it again")
     previous = _listed(_read_manifest(out))
@@ -343,6 +353,7 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
     studies: list[PlantStudy] = []
     notes: dict[str, str] = {}
     gains_used: dict[str, Path] = {}
+    keys: dict[str, str] = {}  # each plant's cache key: the inputs of its study
     for plant in plants:
         if retune_gains:
             begin_writing()
@@ -355,7 +366,8 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
             gains_used.update({str(p): p for p in _gain_paths(plant, src)})
         notes.update(_notes(plant, tuned))
         designs = {name: (t.controller, dict(t.gains)) for name, t in tuned.items()}
-        key = _cache_key(plant, cfg, {n: repr(t) for n, t in tuned.items()}, version)
+        key = keys[plant] = _cache_key(plant, cfg, {n: repr(t) for n, t in tuned.items()},
+                                       version)
         path = cache / f"{plant}-{key}.npz"
         study: PlantStudy | None = None
         if path.is_file() and not force:
@@ -385,9 +397,9 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
         + "; ".join(f"{k} = {v!r} (the set has {base[k]!r})" for k, v in overrides.items())
         if overrides else ", with no override.")]
 
-    # figures drawn by the previous run from the same inputs are kept, not drawn again:
-    # its manifest is read before begin_writing() replaces it (with --retune it already
-    # has, and everything is drawn)
+    # figures and traces the previous run made from the same inputs are kept, not made
+    # again: its manifest is read before begin_writing() replaces it (with --retune it
+    # already has, and everything is written)
     before = _read_manifest(out)
     begin_writing()
     written: list[Path] = []
@@ -398,7 +410,12 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
     figure_groups = {"fig3": fig3_files(out, FIG3_FORMATS)}
     figure_groups.update({plant: figure_files(plant, out) for plant in plants})
     kept = {g for g, files in figure_groups.items()
-            if not force and reusable(before, out, g, figure_keys[g], files)}
+            if not force and reusable(before, out, g, figure_keys[g], files, digest=digests)}
+    # a plant's traces are a function of its study, which its cache key names
+    trace_groups = {s.plant: trace_files(s, out) for s in studies}
+    kept_traces = {plant for plant, files in trace_groups.items()
+                   if not force and reusable(before, out, plant, keys[plant], files,
+                                             section="traces", digest=digests)}
     if "fig3" in kept:
         fig3_paths = figure_groups["fig3"]
     else:
@@ -406,7 +423,8 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
     if progress is not None:
         progress("figure 3" + (" (kept)" if "fig3" in kept else ""))
     paths = write_outputs(out, cfg, studies, fig3_paths, notes, shown, written=written,
-                          notices=notices, figures_reused=kept)
+                          notices=notices, figures_reused=kept,
+                          traces_reused=kept_traces)
     if progress is not None:
         progress("figures, tables and report")
     rels = [p.relative_to(out).as_posix() for p in written]
@@ -424,12 +442,30 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
         "parameters": to_dict(cfg.params), "plants": list(plants),
         "settings": _settings(cfg),
         "gains": {name: {"sha256": sha256_file(p)} for name, p in gains_used.items()},
-        "outputs": {rel: sha256_file(out / rel) for rel in rels},
-        # the inputs each figure group was drawn from (a later run keeps them if equal)
+        "outputs": {rel: digests(out / rel) for rel in rels},
+        # the inputs each group of figures and traces was made from (a later run keeps the
+        # group if they are equal and its files unchanged)
         "figures": {g: {"key": figure_keys[g],
                         "files": [p.relative_to(out).as_posix() for p in files]}
                     for g, files in figure_groups.items()},
+        "traces": {plant: {"key": keys[plant],
+                           "files": [p.relative_to(out).as_posix() for p in files]}
+                   for plant, files in trace_groups.items()},
     }
     paths["manifest"] = write_text_atomic(out / MANIFEST, strict_json(manifest, indent=2)
                                           + "\n")
+    _prune_cache(cache, keys)
     return paths
+
+
+def _prune_cache(cache: Path, keys: Mapping[str, str]) -> None:
+    """Remove the entries of ``cache`` of the plants just run, ``{plant}-{key}.npz``, whose
+    key is not the plant's current one (stale: written from other inputs or by other code).
+    Entries of other plants, and files not named like entries, are left alone. Called after
+    the run's manifest is written: an interrupted or failing run removes nothing."""
+    for plant, key in keys.items():
+        entry = re.compile(re.escape(plant) + r"-[0-9a-f]{16}\.npz")
+        for p in cache.glob(f"{glob.escape(plant)}-*.npz"):
+            if entry.fullmatch(p.name) and p.name != f"{plant}-{key}.npz":
+                with contextlib.suppress(OSError):  # a cache, not an output: best effort
+                    p.unlink()
