@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
-from scipy import integrate
 
 from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
@@ -373,6 +372,8 @@ def _quad_centroid(system: MamdaniSystem, w: FloatArray) -> float:
     2001-point scan and refined by bisection to rounding, and ``quad`` integrates each smooth
     piece to the spec's ``quad_tol``.
     """
+    from scipy import integrate  # only for Gaussian / bell outputs: it takes 0.5 s to import
+
     out = system.output
     lo, hi = out.universe
     spec = system.spec

@@ -14,6 +14,7 @@ mid-stroke, and the tests re-check that independently.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
@@ -239,14 +240,22 @@ PAPER_PIDS: Mapping[str, PaperPID] = MappingProxyType({
 def named_set(name: str) -> ServoParams:
     """Build the named parameter set (``"paper"`` or ``"stiff-oil"``).
 
+    Each set is derived once per process (a root solve over the linearised model) and the
+    same frozen value returned after that.
+
     Raises
     ------
     ParameterError
         For an unknown name.
     """
-    try:
-        make = _SETS[name]
-    except (KeyError, TypeError):
+    if not isinstance(name, str) or name not in _SETS:
         raise ParameterError(f"unknown parameter set {name!r}; allowed: "
-                             f"{', '.join(SET_NAMES)}") from None
-    return make()
+                             f"{', '.join(SET_NAMES)}")
+    return _derived(name)
+
+
+@functools.cache
+def _derived(name: str) -> ServoParams:
+    """The set ``name`` of :data:`_SETS`: a frozen value of the frozen Table A.1 and
+    physical choices, so computing it once is the same as computing it every time."""
+    return _SETS[name]()
