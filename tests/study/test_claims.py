@@ -355,7 +355,7 @@ def test_summary_counts_the_verdicts_and_compares_with_the_tuned_designs() -> No
                       "(C1).")
     assert out[1] == ("C1 (no overshoot) does not hold on any plant; "
                       "C2 (faster than the PIDs), C3 (smaller control amplitude), C4 "
-                      "(alpha_F settles), C5 (fuzzy PI settles more slowly), C6 (robust with "
+                      "(α_F settles), C5 (fuzzy PI settles more slowly), C6 (robust with "
                       "the hose delay) and C8 (robust to parameter changes) hold on every "
                       "plant.")
     assert out[2] == ("On the linear plant, against the tuned P (1-DOF PID with ki = kd = 0) "

@@ -8,11 +8,15 @@ import csv
 import json
 import math
 import re
+from html import escape
 from pathlib import Path
 
 import pytest
 
 from fuzzyservo.cli import main
+from fuzzyservo.paper import alpha_system, du_system
+from fuzzyservo.plots.figures import FIG3_STEMS
+from fuzzyservo.study.figures import fig3_captions
 from fuzzyservo.study.paper_study import TUNED_DESIGNS
 from fuzzyservo.study.report import Details, Section, Table, Verdict, render_html
 from fuzzyservo.study.runner import default_gains_dir
@@ -113,3 +117,20 @@ def test_claims_json_quotes_the_numbers_of_metrics_csv(reproduced: Path) -> None
         assert (c8["verdict"] == "does not hold") == bool(failing)
         for n in failing:
             assert f"{n}: " in c8["evidence"]
+
+
+def test_fig3_has_captions_saying_what_each_file_shows(reproduced: Path) -> None:
+    """Issue 10: the captions were the file stems ('fig3a rules du'), and the title left out
+    the rule tables."""
+    html = (reproduced / "report.html").read_text()
+    section = html[html.index("<h2>Fig. 3: membership functions, rule tables and control "
+                              "surfaces</h2>"):]
+    shown = re.findall(r"<figcaption>([^<]*)</figcaption>", section)[:len(FIG3_STEMS)]
+    captions = fig3_captions(du_system(), alpha_system())
+    assert set(captions) == set(FIG3_STEMS)
+    assert shown == [escape(captions[s]) for s in FIG3_STEMS]
+    for stem, text in captions.items():
+        assert stem.replace("_", " ") not in text and "_" not in text, text
+        assert text.startswith(f"Fig. {stem[3:5]}: "), text
+    assert "49 rules for Δuₙ" in captions["fig3a_rules_du"]
+    assert "ZO, VS, S, SB, MB, B, VB on [0, 1]" in captions["fig3b_memberships"]

@@ -67,7 +67,7 @@ MAX_OVERSHOOT_PCT = 10.0
 #: 10/N = 0.1 s, so nothing of it is left in the window [-].
 KICK_TIME_CONSTANTS = 10.0
 #: Fraction of the run, at its end, over which a response is examined for a limit cycle, and
-#: alpha_F for being constant (C4) [-].
+#: α_F for being constant (C4) [-].
 TAIL_FRACTION = 0.25
 #: A limit cycle is an oscillation of at least this peak-to-peak size [fraction of the step]:
 #: +-0.5 % of the step, the resolution the study reads into the paper's plots (as for "no
@@ -79,14 +79,14 @@ LIMIT_CYCLE_MIN_SWINGS = 4
 #: ... and is sustained: its peak-to-peak over the second half of the tail is at least this
 #: fraction of that over the first half (a decaying oscillation loses more) [-].
 LIMIT_CYCLE_MIN_SUSTAIN = 0.5
-#: alpha_F is constant when its spread over the tail is at most this (1/100 of its range) [-].
+#: α_F is constant when its spread over the tail is at most this (1/100 of its range) [-].
 ALPHA_MAX_SPREAD = 0.01
 
 CLAIM_TEXTS: dict[str, str] = {
     "C1": "The self-tuning fuzzy PI has no overshoot.",
     "C2": "The self-tuning fuzzy PI rises and settles faster than the PIDs.",
     "C3": "The self-tuning fuzzy PI's control amplitude is smaller than both PIDs'.",
-    "C4": "The self-tuning factor alpha_F settles to a constant.",
+    "C4": "The self-tuning factor α_F settles to a constant.",
     "C5": "The fuzzy PI without self-tuning settles more slowly.",
     "C6": "The self-tuning fuzzy PI stays robust with the 6 ms hose delay.",
     "C7": "PID (1.2, 1, 0.75) gives at most 10 % overshoot and no steady-state error, "
@@ -100,7 +100,7 @@ CLAIM_SHORT: dict[str, str] = {
     "C1": "no overshoot",
     "C2": "faster than the PIDs",
     "C3": "smaller control amplitude",
-    "C4": "alpha_F settles",
+    "C4": "α_F settles",
     "C5": "fuzzy PI settles more slowly",
     "C6": "robust with the hose delay",
     "C7": "the paper's PIDs as it describes them",
@@ -127,7 +127,7 @@ CLAIM_RULES: dict[str, str] = {
            f"derivative-filter time constants 1/N after the step) and the RMS of u over the "
            f"run; holds when it is smaller by all three, under stated conditions when by "
            f"some (named), else does not hold"),
-    "C4": (f"holds when alpha_F's spread over the last {TAIL_FRACTION * 100:g} % of the run "
+    "C4": (f"holds when α_F's spread over the last {TAIL_FRACTION * 100:g} % of the run "
            f"is <= {ALPHA_MAX_SPREAD:g}"),
     "C5": "holds when the fuzzy PI's 2 % settling time exceeds the self-tuning one's",
     "C6": (f"holds when the run with the hose delay is {_ROBUST}, and no controller of the "
@@ -384,7 +384,7 @@ def evaluate_claims(
     tuned_pids : sequence of str
         Keys of PIDs tuned to the paper's stated constraint.
     alpha_trace : (t, alpha)
-        The self-tuning run's alpha_F(t) [s, -].
+        The self-tuning run's α_F(t) [s, -].
     delayed : mapping
         Metrics of the self-tuning run with the hose delay.
     delay : float
@@ -533,7 +533,7 @@ def _c4(ctx: _Context, alpha_trace: tuple[FloatArray, FloatArray]) -> Claim:
     settled, final, spread = alpha_settles(*alpha_trace)
     return ctx.claim(
         "C4", HOLDS if settled else NOT_HOLDS,
-        f"alpha_F ends at {final:.4g}; spread over the last {TAIL_FRACTION * 100:g} % of the "
+        f"α_F ends at {final:.4g}; spread over the last {TAIL_FRACTION * 100:g} % of the "
         f"run {spread:.2g} (constant read as a spread <= {ALPHA_MAX_SPREAD:g})",
         {"tail_fraction": TAIL_FRACTION, "max_spread": ALPHA_MAX_SPREAD},
         {ctx.stfpi: {"label": ctx.labels[ctx.stfpi], "alpha_final": final,

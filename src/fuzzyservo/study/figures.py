@@ -36,8 +36,10 @@ from .report import Figure
 if TYPE_CHECKING:
     from matplotlib.figure import Figure as Drawing
 
+    from ..fuzzy import LinguisticVariable, MamdaniSystem
+
 __all__ = ["FIGURE_STEMS", "NEAR_FRACTION", "OVERSHOOT_LIMIT_PCT", "PlannedFigure",
-           "figure_files", "figure_plan", "study_figures"]
+           "fig3_captions", "figure_files", "figure_plan", "study_figures"]
 
 #: The figures of one plant, without the ``_{plant}`` suffix, in the report's order.
 FIGURE_STEMS: tuple[str, ...] = ("fig4", "fig5", "fig6", "fig7", "fig8",
@@ -67,6 +69,63 @@ class PlannedFigure:
     stem: str
     caption: str
     draw: Callable[[], Drawing]
+
+
+#: Names of the fuzzy systems' variables in captions (Unicode; the figures use mathtext).
+_CAPTION_NAMES = {"e": "eₙ", "de": "Δeₙ", "du": "Δuₙ", "alpha": "α"}
+
+#: The defuzzifiers in words.
+_DEFUZZ_WORDS = {"exact_centroid": "centroid", "sampled_centroid": "centroid (sampled)",
+                 "bisector": "bisector of area", "mean_of_maxima": "mean of maxima"}
+
+
+def fig3_captions(du: MamdaniSystem, alpha: MamdaniSystem) -> dict[str, str]:
+    """The report's caption of each file stem of Fig. 3 (``plots.figures.FIG3_STEMS``): what
+    it shows, read from the two systems (terms, universes, rules, operators)."""
+    def name(v: LinguisticVariable) -> str:
+        return _CAPTION_NAMES.get(v.name, v.name)
+
+    def terms(v: LinguisticVariable) -> str:
+        lo, hi = v.universe
+        return f"{', '.join(v.labels)} on [{lo:g}, {hi:g}]"
+
+    def rules(system: MamdaniSystem, fig: str) -> str:
+        col, row = system.inputs
+        spec = system.spec
+        return (f"Fig. {fig}: the {len(system.rules.rules)} rules for {name(system.output)}, "
+                f"laid out as the paper's table: row {name(row)}, column {name(col)}, cell "
+                f"the term of {name(system.output)} (AND {spec.and_op}, implication "
+                f"{spec.implication}, aggregation {spec.aggregation.replace('_', ' ')}).")
+
+    def surface(system: MamdaniSystem, fig: str, what: str) -> str:
+        col, row = system.inputs
+        how = _DEFUZZ_WORDS.get(system.spec.defuzz, system.spec.defuzz.replace("_", " "))
+        return (f"Fig. {fig}: {what} {name(system.output)}({name(col)}, {name(row)}) of "
+                f"these rules, defuzzified by the {how}: left as a surface, right as "
+                f"contours.")
+
+    du_vars = [*du.inputs, du.output]
+    if len({terms(v) for v in du_vars}) == 1:
+        du_terms = f"each with the terms {terms(du.output)}"
+    else:
+        du_terms = "; ".join(f"{name(v)}: {terms(v)}" for v in du_vars)
+    e, de = du.inputs
+    same = ("Its inputs are those of Fig. 3a." if alpha.inputs == du.inputs else
+            "Its inputs: " + "; ".join(f"{name(v)}: {terms(v)}" for v in alpha.inputs) + ".")
+    return {
+        "fig3a_memberships": (
+            f"Fig. 3a: membership functions of the fuzzy PI's inputs, the normalised error "
+            f"{name(e)} and its change {name(de)}, and of its output, the normalised change "
+            f"of the command {name(du.output)}; {du_terms}."),
+        "fig3a_rules_du": rules(du, "3a"),
+        "fig3a_surface_du": surface(du, "3a", "the control surface"),
+        "fig3b_memberships": (
+            f"Fig. 3b: membership functions of the gain updating factor {name(alpha.output)} "
+            f"of the self-tuning fuzzy PI (the paper's α with subscript F): the terms "
+            f"{terms(alpha.output)}. {same}"),
+        "fig3b_rules_alpha": rules(alpha, "3b"),
+        "fig3b_surface_alpha": surface(alpha, "3b", "the gain updating factor"),
+    }
 
 
 def figure_files(plant: str, out: Path) -> list[Path]:

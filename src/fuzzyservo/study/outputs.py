@@ -9,10 +9,11 @@ from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 
 from .._io import atomic_write, strict_json, write_text_atomic
+from ..paper import alpha_system, du_system
 from ..paper.departures import DEPARTURES
 from ..plant import linearize, to_dict
 from .claims import CLAIM_SHORT, HOLDS, NOT_HOLDS, PARTLY, Claim, summarize
-from .figures import study_figures
+from .figures import fig3_captions, study_figures
 from .paper_study import TUNED_AS, PlantStudy, StudyConfig, design_name
 from .report import Details, Figure, Section, Table, Verdict, write_html
 
@@ -207,9 +208,10 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                           caption="Delay sweep, gains fixed")],
             figures=study_figures(s, cfg, out, written,
                                   reuse=s.plant in figures_reused)))
+    captions = fig3_captions(du_system(), alpha_system())
     sections.append(Section(
-        "Fig. 3: membership functions and control surfaces",
-        figures=[Figure(p, p.stem.replace("_", " ")) for p in fig3 if p.suffix == ".png"]))
+        "Fig. 3: membership functions, rule tables and control surfaces",
+        figures=[Figure(p, captions[p.stem]) for p in fig3 if p.suffix == ".png"]))
     gain_rows = [[s.plant, c.label, _fmt_gains(c.gains),
                   tuning_notes.get(f"{s.plant}:{c.key}", "given by the paper")]
                  for s in studies for c in s.cases]
