@@ -107,7 +107,18 @@ def test_stfpi_step_two_recovers_step_one_rise_time(tuned_stfpi: TunedGains) -> 
     s1, s2, s3 = (tuned_stfpi.stage(n) for n in ("fpi", "rise", "refine"))
     assert (s2.gains["ke"], s2.gains["kde"]) == (s1.gains["ke"], s1.gains["kde"])
     assert s2.gains["kdu"] >= s1.gains["kdu"]
-    assert s2.metrics["rise_time"] == pytest.approx(s1.metrics["rise_time"], abs=TS)  # 1 sample
+    target = s1.metrics["rise_time"]
+    if abs(s2.metrics["rise_time"] - target) > TS:
+        # the rise time jumps at s2's kdu (the first overshoot hump crosses the 90 % line):
+        # then step 2 returns the end of a bracket narrower than 1e-6 nearer the target, and
+        # the other end lies on the other side of the target
+        ev = make_evaluator(tuned_stfpi.setup, PARAMS)
+        g = np.array([[s2.gains["ke"], s2.gains["kde"], s2.gains["kdu"]]] * 2)
+        g[1, 2] *= (1.0 - 1e-6) if s2.metrics["rise_time"] < target else (1.0 + 1e-6)
+        tr = ev(g)["rise_time"]
+        assert tr[0] == s2.metrics["rise_time"]
+        assert (tr[1] - target) * (tr[0] - target) < 0.0
+        assert min(abs(tr[0] - target), abs(tr[1] - target)) == abs(tr[0] - target)
     assert tuned_stfpi.gains == s3.gains
     # the refinement starts from step 2, so it is never worse
     assert s3.objective_value <= s2.objective_value or not s2.feasible

@@ -48,10 +48,12 @@ from ..registry import ControllerKind, build_plant, controller_kind, plant_kind
 from ..sim import DEFAULT_DELAY, Plant, Step, simulate_batch
 from ..sim.closed_loop import plant_limits, time_grid
 from ..sim.references import check_reference_samples
-from ..sim.stepinfo import METRIC_NAMES
+from ..sim.stepinfo import METRIC_NAMES, SETTLE_HOLD_FRACTION
 from .tuning import (
     DEFAULT_PATIENCE,
     DEFAULT_RTOL,
+    DEFAULT_SPREAD,
+    FINAL_ERROR,
     OBJECTIVES,
     GainBounds,
     SearchState,
@@ -140,9 +142,10 @@ class TuningSetup:
         Differential-evolution population multiplier (2 to :data:`MAX_POPSIZE`) and generation
         limit (1 to :data:`MAX_MAXITER`) of each search stage; the limit is a budget, the
         stopping rule normally ends the search first.
-    patience, rtol : int, float
+    patience, rtol, spread : int, float, float
         Stopping rule (:class:`fuzzyservo.analysis.tuning.StopRule`): converged when the best
-        cost improved by no more than ``rtol`` (relative) over ``patience`` generations.
+        cost improved by no more than ``rtol`` (relative) over ``patience`` generations and
+        the population's median cost is within ``spread`` (relative) of the best.
     pid_n : float
         Derivative filter coefficient n held while tuning a kind with that gain [1/s].
     polish : bool
@@ -167,6 +170,7 @@ class TuningSetup:
     maxiter: int = DEFAULT_MAXITER
     patience: int = DEFAULT_PATIENCE
     rtol: float = DEFAULT_RTOL
+    spread: float = DEFAULT_SPREAD
     pid_n: float = 100.0
     polish: bool = True
     bounds: GainBounds | None = None
@@ -202,7 +206,7 @@ class TuningSetup:
         if not 1 <= self.maxiter <= MAX_MAXITER:
             raise ParameterError(f"maxiter must be between 1 and {MAX_MAXITER}, got "
                                  f"{self.maxiter!r}")
-        StopRule(patience=self.patience, rtol=self.rtol)  # checks both
+        StopRule(patience=self.patience, rtol=self.rtol, spread=self.spread)  # checks them
         b = self.bounds
         if b is not None and b.names != default_bounds(self.controller, self.step).names:
             raise ParameterError(
@@ -225,7 +229,7 @@ class TuningSetup:
     @property
     def stop(self) -> StopRule:
         """The stopping rule of every search stage."""
-        return StopRule(patience=self.patience, rtol=self.rtol)
+        return StopRule(patience=self.patience, rtol=self.rtol, spread=self.spread)
 
 
 def setup_record(setup: TuningSetup) -> dict[str, Any]:
@@ -245,7 +249,8 @@ def setup_record(setup: TuningSetup) -> dict[str, Any]:
         "start": setup.start, "step": setup.step, "duration": setup.duration,
         "ts": setup.ts, "delay": setup.delay, "objective": setup.objective,
         "seed": setup.seed, "popsize": setup.popsize, "maxiter": setup.maxiter,
-        "patience": setup.patience, "rtol": setup.rtol, "pid_n": setup.pid_n,
+        "patience": setup.patience, "rtol": setup.rtol, "spread": setup.spread,
+        "pid_n": setup.pid_n,
         "polish": setup.polish, "constraints": cons,
         "bounds": {n: [lo, hi, lg, zr] for n, lo, hi, lg, zr in
                    zip(b.names, b.lower, b.upper, b.log_scale, b.zero, strict=True)},
@@ -258,7 +263,8 @@ _OPTION = {"controller": "--controller", "plant": "--plant", "param_set": "--set
            "duration": "--duration", "ts": "--ts", "delay": "--delay",
            "objective": "--objective", "seed": "--seed", "popsize": "--popsize",
            "maxiter": "--maxiter", "constraints": "--max-overshoot/--max-sse/--max-u",
-           "polish": "--no-polish"}
+           "polish": "--no-polish", "patience": "--patience", "rtol": "--rtol",
+           "spread": "--spread"}
 
 
 def params_digest(params: ServoParams) -> str:
@@ -305,6 +311,10 @@ def _plant(setup: TuningSetup, params: ServoParams) -> Plant:
 
 Evaluator = Callable[[FloatArray], dict[str, FloatArray]]
 
+#: Samples of trace kept per batch of the evaluator (runs x samples), so that a population of
+#: long runs is simulated in parts instead of holding every trace at once (40 MB per signal).
+TRACE_SAMPLES = 5_000_000
+
 
 def _evaluator(setup: TuningSetup, kind: ControllerKind, params: ServoParams,
                systems: Mapping[str, KernelSystem] | None) -> Evaluator:
@@ -312,10 +322,24 @@ def _evaluator(setup: TuningSetup, kind: ControllerKind, params: ServoParams,
     ctl = kind.template(dt=setup.ts, systems=systems)
     ref = Step(setup.step)
 
+    n_samples = time_grid(setup.duration, setup.ts).size
+    per_batch = max(1, TRACE_SAMPLES // n_samples)
+
     def evaluate(gains: FloatArray) -> dict[str, FloatArray]:
-        res = simulate_batch(ctl, full_gains(setup, gains, kind), plant=plant, reference=ref,
-                             duration=setup.duration, delay=setup.delay)
-        return {name: res.metric(name) for name in METRIC_NAMES}
+        rows = full_gains(setup, gains, kind)
+        parts = []
+        for i in range(0, rows.shape[0], per_batch):
+            res = simulate_batch(ctl, rows[i:i + per_batch], plant=plant, reference=ref,
+                                 duration=setup.duration, delay=setup.delay, keep_traces=True)
+            part = {name: res.metric(name) for name in METRIC_NAMES}
+            assert res.y is not None
+            t = res.t
+            tail = t >= t[0] + (1.0 - SETTLE_HOLD_FRACTION) * (t[-1] - t[0])
+            e = res.y0[:, None] + res.r[None, tail] - res.y[:, tail]
+            with np.errstate(invalid="ignore"):
+                part[FINAL_ERROR] = np.where(res.diverged, np.nan, np.max(np.abs(e), axis=1))
+            parts.append(part)
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     return evaluate
 

@@ -33,6 +33,8 @@ from ..errors import ParameterError
 __all__ = [
     "DEFAULT_PATIENCE",
     "DEFAULT_RTOL",
+    "DEFAULT_SPREAD",
+    "FINAL_ERROR",
     "OBJECTIVES",
     "ZERO_DECADES",
     "GainBounds",
@@ -48,6 +50,13 @@ __all__ = [
 Objective = Literal["iae", "itae", "ise"]
 #: Objectives the tuner accepts; each is a column of the metrics returned by the evaluator.
 OBJECTIVES: tuple[str, ...] = ("iae", "itae", "ise")
+
+#: Metric an evaluator may return besides the step metrics: the largest |r - y| over the last
+#: 10 % of the run (``SETTLE_HOLD_FRACTION``) [unit of y]. When present, the steady-state
+#: error constraint uses it instead of the error at the last sample, which for a response
+#: with a small sustained oscillation depends on the oscillation's phase at the last sample
+#: and makes the cost jump between neighbouring gains (docs/model.md, "Tuning").
+FINAL_ERROR = "final_error_max"
 
 #: Cost given to a run whose metrics are not finite (diverged, never settled).
 _INFEASIBLE = 1.0e6
@@ -213,6 +222,7 @@ class TuningConstraints:
 #: Default stopping rule: generations without a relative improvement above DEFAULT_RTOL.
 DEFAULT_PATIENCE = 30
 DEFAULT_RTOL = 1e-4
+DEFAULT_SPREAD = 0.01
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -220,9 +230,12 @@ class StopRule:
     """When a differential-evolution search has converged (docs/model.md, "Tuning").
 
     The search stops at generation g >= ``patience`` when the best cost improved by no more
-    than ``rtol`` (relative) over the last ``patience`` generations:
-    ``best[g - patience] - best[g] <= rtol * max(|best[g]|, 1e-12)``; it then runs the
-    polish. A search that reaches its generation limit first is reported as not converged.
+    than ``rtol`` (relative) over the last ``patience`` generations,
+    ``best[g - patience] - best[g] <= rtol * max(|best[g]|, 1e-12)``, and the population has
+    gathered: its median cost is within ``spread`` (relative) of the best
+    (a best that stalls while half the population is still far from it is a search stuck
+    on a rough landscape, not a converged one); it then runs the polish. A search that
+    reaches its generation limit first is reported as not converged.
 
     Parameters
     ----------
@@ -230,10 +243,13 @@ class StopRule:
         Generations without a significant improvement before stopping (>= 1).
     rtol : float
         Relative improvement below which a generation does not count [-].
+    spread : float
+        Largest relative distance of the population's median cost from the best [-].
     """
 
     patience: int = DEFAULT_PATIENCE
     rtol: float = DEFAULT_RTOL
+    spread: float = DEFAULT_SPREAD
 
     def __post_init__(self) -> None:
         if not (isinstance(self.patience, int) and self.patience >= 1):
@@ -241,15 +257,21 @@ class StopRule:
                                  f"{self.patience!r}")
         if not (math.isfinite(self.rtol) and 0.0 <= self.rtol < 1.0):
             raise ParameterError(f"StopRule.rtol must be in [0, 1), got {self.rtol!r}")
+        if not (math.isfinite(self.spread) and self.spread >= 0.0):
+            raise ParameterError(f"StopRule.spread must be finite and >= 0, got "
+                                 f"{self.spread!r}")
 
-    def converged(self, history: tuple[float, ...]) -> bool:
+    def converged(self, history: tuple[float, ...], costs: FloatArray) -> bool:
         """Whether a search whose best cost after each generation (index 0: the initial
-        population) is ``history`` has converged."""
+        population) is ``history`` and whose members cost ``costs`` has converged."""
         g = len(history) - 1
         if g < self.patience:
             return False
         best, before = history[-1], history[-1 - self.patience]
-        return before - best <= self.rtol * max(abs(best), 1e-12)
+        scale = max(abs(best), 1e-12)
+        if before - best > self.rtol * scale:
+            return False
+        return float(np.median(costs)) - best <= self.spread * scale
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -346,7 +368,8 @@ def constraint_violation(metrics: Mapping[str, FloatArray], constraints: TuningC
         os_ = np.where(np.isfinite(os_), os_, 0.0)  # never overshooting is not a violation
         v += np.maximum(os_ - constraints.max_overshoot, 0.0) / 10.0
     if constraints.max_steady_state_error is not None:
-        sse = np.abs(np.asarray(metrics["steady_state_error"], dtype=np.float64)) / step_size
+        err = metrics[FINAL_ERROR] if FINAL_ERROR in metrics else metrics["steady_state_error"]
+        sse = np.abs(np.asarray(err, dtype=np.float64)) / step_size
         lim = max(constraints.max_steady_state_error, 1e-3)
         v += np.where(np.isfinite(sse),
                       np.maximum(sse - constraints.max_steady_state_error, 0.0) / lim, 1.0)
@@ -491,7 +514,7 @@ def tune(evaluate: Evaluator, bounds: GainBounds, *, objective: str = "itae",
                             history=(float(np.min(costs)),), n_evaluations=pop.shape[0])
         if on_generation is not None:
             on_generation(state)
-    while state.generation < maxiter and not stop.converged(state.history):
+    while state.generation < maxiter and not stop.converged(state.history, state.costs):
         trial = _generation(rng, state.population, state.costs)
         tc = cost_of(trial)
         keep = tc <= state.costs
@@ -503,7 +526,7 @@ def tune(evaluate: Evaluator, bounds: GainBounds, *, objective: str = "itae",
                             n_evaluations=state.n_evaluations + trial.shape[0])
         if on_generation is not None:
             on_generation(state)
-    converged = stop.converged(state.history)
+    converged = stop.converged(state.history, state.costs)
     n_eval = state.n_evaluations
     ib = int(np.argmin(state.costs))
     u_best, f_best = state.population[ib].copy(), float(state.costs[ib])
@@ -520,6 +543,18 @@ def tune(evaluate: Evaluator, bounds: GainBounds, *, objective: str = "itae",
         n_eval += count[0]
         if float(pol.fun) < f_best:
             u_best, f_best = np.asarray(pol.x, dtype=np.float64), float(pol.fun)
+    # parsimony: a term that may be 0 and whose removal costs no more than the stopping
+    # rule's tolerance is switched off (ki = 1e-3 next to kp = 8.5 is a P controller)
+    zlo, zhi = bounds._ends()
+    for j in range(k):
+        g_j = float(bounds.from_unit(u_best[None, :])[0, j])
+        if bounds.zero[j] and g_j > 0.0:
+            u_off = u_best.copy()
+            u_off[j] = 0.5 * ZERO_DECADES / (zhi[j] - zlo[j])  # middle of the zero region
+            f_off = float(cost_of(u_off)[0])
+            n_eval += 1
+            if f_off <= f_best + stop.rtol * max(abs(f_best), 1e-12):
+                u_best, f_best = u_off, min(f_best, f_off)
     gains = bounds.from_unit(u_best[None, :])
     metrics = evaluate(gains)
     n_eval += 1

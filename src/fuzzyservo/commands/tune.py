@@ -86,6 +86,9 @@ def register(subparsers: Any) -> None:
                         f"--rtol over N generations (default {DEFAULT_STOP.patience})")
     p.add_argument("--rtol", type=float, default=DEFAULT_STOP.rtol, metavar="R",
                    help=f"stopping rule's relative improvement (default {DEFAULT_STOP.rtol:g})")
+    p.add_argument("--spread", type=float, default=DEFAULT_STOP.spread, metavar="S",
+                   help=f"stopping rule: the population's median cost within S (relative) of "
+                        f"the best (default {DEFAULT_STOP.spread:g})")
     p.add_argument("--step", type=float, default=0.1, metavar="M",
                    help="reference step [m] (default 0.1)")
     p.add_argument("--duration", type=float, default=10.0, metavar="S",
@@ -124,7 +127,7 @@ def _setup(args: argparse.Namespace, params: ServoParams) -> TuningSetup:
                                       max_steady_state_error=args.max_sse / 100.0,
                                       max_u=args.max_u),
         seed=args.seed, popsize=args.popsize, maxiter=args.maxiter, patience=args.patience,
-        rtol=args.rtol, polish=args.polish)
+        rtol=args.rtol, spread=args.spread, polish=args.polish)
 
 
 class _Progress:

@@ -180,7 +180,8 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
             pid_n=rd.get(tu, "pid_n", float, w), polish=rd.get(tu, "polish", bool, w),
             bounds=bounds, **({} if layout == 1 else {
                 "patience": rd.get(tu, "patience", int, w),
-                "rtol": rd.get(tu, "rtol", float, w)}))
+                "rtol": rd.get(tu, "rtol", float, w),
+                "spread": rd.get(tu, "spread", float, w)}))
     except ParameterError as exc:
         raise InputError(f"{str(path)!r}: {exc}") from exc
     res = rd.get(doc, "result", dict, "")
