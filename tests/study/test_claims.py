@@ -359,7 +359,8 @@ def test_summary_counts_the_verdicts_and_compares_with_the_tuned_designs() -> No
                       "the hose delay) and C8 (robust to parameter changes) hold on every "
                       "plant.")
     assert out[2] == ("On the linear plant, against the tuned P (1-DOF PID with ki = kd = 0) "
-                      "and 2-DOF PID, the self-tuning fuzzy PI has larger ITAE (0.06 m s^2 "
+                      "and 2-DOF PID, the self-tuning fuzzy PI tuned like them (ITAE, "
+                      "overshoot <= 10 %) has larger ITAE (0.06 m s^2 "
                       "against 0.025 and 0.026 m s^2), longer rise time (1.4 s against 0.75 "
                       "and 0.76 s) and shorter 2 % settling time (2.2 s against 2.4 and n/a "
                       "(never reached) s).")

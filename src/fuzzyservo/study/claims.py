@@ -662,9 +662,10 @@ def summarize(claims: Sequence[Claim],
               comparisons: Mapping[str, tuple[Metrics, Mapping[str, Metrics]]]) -> list[str]:
     """A summary of the verdicts, at most five sentences, computed from them.
 
-    ``claims`` are every plant's; ``comparisons`` maps a plant to the self-tuning fuzzy PI's
-    metrics and, by name, the tuned PID-family designs' (named by structure: "P (tuned as a
-    1-DOF PID)", ...). One sentence gives the verdicts per plant, one the claims that agree
+    ``claims`` are every plant's; ``comparisons`` maps a plant to the metrics of the
+    self-tuning fuzzy PI tuned like the PIDs (same objective and constraints, so the
+    comparison is at equal terms) and, by name, the tuned PID-family designs' (named by
+    structure: "P (tuned as a 1-DOF PID)", ...). One sentence gives the verdicts per plant, one the claims that agree
     on every plant, and one per plant (at most three) compares ITAE, rise and settling time.
     """
     plants = list(dict.fromkeys(c.plant for c in claims))
@@ -709,7 +710,7 @@ def summarize(claims: Sequence[Claim],
                _compare(st, tuned, "settling_time", "2 % settling time", " s",
                         ("shorter", "longer"))]
         out.append(f"On the {p} plant, against the tuned {names}, the self-tuning fuzzy PI "
-                   f"has {_join(cmp)}.")
+                   f"tuned like them (ITAE, overshoot <= 10 %) has {_join(cmp)}.")
     return out[:5]
 
 
