@@ -665,8 +665,9 @@ def summarize(claims: Sequence[Claim],
     ``claims`` are every plant's; ``comparisons`` maps a plant to the metrics of the
     self-tuning fuzzy PI tuned like the PIDs (same objective and constraints, so the
     comparison is at equal terms) and, by name, the tuned PID-family designs' (named by
-    structure: "P (tuned as a 1-DOF PID)", ...). One sentence gives the verdicts per plant, one the claims that agree
-    on every plant, and one per plant (at most three) compares ITAE, rise and settling time.
+    structure: "P (tuned as a 1-DOF PID)", ...). One sentence gives the verdicts per plant,
+    one the claims that agree on every plant, and one per plant (at most three) compares
+    ITAE, rise and settling time.
     """
     plants = list(dict.fromkeys(c.plant for c in claims))
     out: list[str] = []
