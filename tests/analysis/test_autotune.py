@@ -49,7 +49,7 @@ def tuned_pid() -> TunedGains:
 @pytest.fixture(scope="module")
 def tuned_stfpi() -> TunedGains:
     setup = TuningSetup(controller="stfpi", plant="linear", duration=5.0, popsize=5,
-                        patience=10)
+                        patience=10, restarts=1)
     return tune_controller(setup, PARAMS)
 
 
@@ -89,7 +89,7 @@ def test_one_dof_pid_must_overshoot_unless_the_search_switches_its_integral_off(
     allows: a P or PD controller), a 2-DOF one also with b < 1 (the integral of e is then
     kp (1 - b)/ki > 0 and no overshoot is forced)."""
     tight = TuningConstraints(max_overshoot=0.5)
-    s1 = TuningSetup(controller="pid", duration=5.0, popsize=5, constraints=tight)
+    s1 = TuningSetup(controller="pid", duration=5.0, popsize=5, constraints=tight, restarts=1)
     box = default_bounds("pid")
     positive = dataclasses.replace(box, zero=())  # ki >= 1e-3: the integral always acts
     forced = tune_controller(dataclasses.replace(s1, bounds=positive), PARAMS)
@@ -164,16 +164,20 @@ def test_default_bounds_cover_the_scales_of_model_notes() -> None:
 
 
 def test_a_search_resumed_from_any_generation_gives_the_same_result() -> None:
-    setup = TuningSetup(controller="pid2", duration=3.0, popsize=3, patience=5)
+    setup = TuningSetup(controller="pid2", duration=3.0, popsize=3, patience=5, restarts=2)
     seen: list[Checkpoint] = []
 
     def record(p: TuningProgress) -> None:
         seen.append(p.checkpoint)
 
     whole = tune_controller(setup, PARAMS, progress=record)
-    assert [c.generation for c in seen] == list(range(whole.generations + 1))
-    assert whole.converged and whole.generations < setup.maxiter
-    for ck in (seen[0], seen[len(seen) // 2], seen[-1]):
+    # generations 0..g of each restart, in turn
+    assert [c.restart for c in seen] == sorted(c.restart for c in seen)
+    assert {c.restart for c in seen} == {0, 1}
+    assert len(seen) == whole.generations + 2
+    assert whole.converged and whole.generations < 2 * setup.maxiter
+    second = [c for c in seen if c.restart == 1]
+    for ck in (seen[0], seen[len(seen) // 3], second[0], seen[-1]):
         again = tune_controller(setup, PARAMS, resume=ck)
         # repr: bit-exact floats, and NaN metrics (never settled in 3 s) compare equal
         assert repr((again.gains, again.metrics, again.cost, again.n_evaluations,
@@ -200,7 +204,7 @@ def short_run() -> tuple[TuningSetup, list[Checkpoint]]:
     ({"param_set": "stiff-oil"}, "param_set"), ({"overrides": (("load.mass", 1e4),)},
                                                 "overrides"),
     ({"maxiter": 7}, "maxiter"), ({"popsize": 4}, "popsize"), ({"patience": 6}, "patience"),
-    ({"start": 0.4}, "start"), ({"polish": False}, "polish"),
+    ({"start": 0.4}, "start"), ({"polish": False}, "polish"), ({"restarts": 2}, "restarts"),
 ])
 def test_a_checkpoint_of_another_setting_is_refused_naming_it(
         change: dict[str, object], needle: str,

@@ -59,14 +59,16 @@ def test_bad_input_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert needle in err
 
 
-def _interrupting(monkeypatch: pytest.MonkeyPatch, stage: str, generation: int) -> None:
-    """Make the next ``tune`` raise Ctrl-C right after ``stage`` reports ``generation``."""
+def _interrupting(monkeypatch: pytest.MonkeyPatch, stage: str, generation: int,
+                  restart: int = 0) -> None:
+    """Make the next ``tune`` raise Ctrl-C right after search ``restart`` of ``stage``
+    reports ``generation``."""
     real = tune_cmd.tune_controller
 
     def interrupted(*a: Any, progress: Any, **kw: Any) -> Any:
         def stop(p: TuningProgress) -> None:
             progress(p)
-            if (p.stage, p.generation) == (stage, generation):
+            if (p.stage, p.restart, p.generation) == (stage, restart, generation):
                 raise KeyboardInterrupt
 
         return real(*a, progress=stop, **kw)
@@ -100,7 +102,7 @@ def test_interrupt_writes_a_checkpoint_and_resume_finishes(
 #: A self-tuning fuzzy PI tuning small enough for a test (its three stages, the polish and
 #: the stopping rule all run): 2 s runs of a 20 mm step.
 STFPI = ["--controller", "stfpi", "--plant", "linear", "--step", "0.02", "--duration", "2",
-         "--popsize", "4", "--patience", "8", "--quiet"]
+         "--popsize", "4", "--patience", "8", "--restarts", "2", "--quiet"]
 
 
 @pytest.mark.slow
@@ -111,32 +113,32 @@ def test_interrupted_and_resumed_tuning_equals_the_uninterrupted_one(
     uninterrupted run's, byte for byte but for the date and the wall time, generations
     counted on."""
     ref = tmp_path / "ref.toml"
-    assert main(["tune", *STFPI, "--out", str(ref)]) == 0
+    code = main(["tune", *STFPI, "--out", str(ref)])  # 1 if the short runs are infeasible
+    assert code in (0, 1)
     tuned = read_gains_toml(ref)
     fpi, refine = tuned.stage("fpi"), tuned.stage("refine")
-    assert fpi.generations > 4 and refine.generations > 4
-    points = [("fpi", 3),                      # early in step 1
-              ("fpi", fpi.generations),         # after step 1's last generation: resume runs
-                                                # its polish and step 2 again
-              ("refine", refine.generations - 2)]  # late in step 3
-    for stage, gen in points:
-        out = tmp_path / f"{stage}-{gen}.toml"
-        _interrupting(monkeypatch, stage, gen)
+    assert fpi.generations > 8 and refine.generations > 8  # two searches each
+    points = [("fpi", 0, 3),        # early in step 1's first search
+              ("fpi", 1, 0),        # step 1's second search, just after its initial population
+              ("refine", 1, 5)]     # step 3's second search (step 1's result is replayed)
+    for stage, restart, gen in points:
+        out = tmp_path / f"{stage}-{restart}-{gen}.toml"
+        _interrupting(monkeypatch, stage, gen, restart)
         assert main(["tune", *STFPI, "--out", str(out)]) == 130
         ck = load_checkpoint(checkpoint_path(out))
-        assert (ck.stage, ck.generation) == (stage, gen)
-        seen: list[tuple[str, int]] = []
+        assert (ck.stage, ck.restart, ck.generation) == (stage, restart, gen)
+        seen: list[tuple[str, int, int]] = []
 
-        def watch(*a: Any, progress: Any, seen: list[tuple[str, int]] = seen,
+        def watch(*a: Any, progress: Any, seen: list[tuple[str, int, int]] = seen,
                   **kw: Any) -> Any:
             def note(p: TuningProgress) -> None:
-                seen.append((p.stage, p.generation))
+                seen.append((p.stage, p.restart, p.generation))
                 progress(p)
             return REAL_TUNE(*a, progress=note, **kw)
 
         monkeypatch.setattr(tune_cmd, "tune_controller", watch)
-        assert main(["tune", *STFPI, "--out", str(out), "--resume"]) == 0
-        assert seen[0] == (stage, gen + 1) or (stage, gen) == ("fpi", fpi.generations)
+        assert main(["tune", *STFPI, "--out", str(out), "--resume"]) == code
+        assert seen[0] == (stage, restart, gen + 1)  # generations counted on
         assert _without_times(out) == _without_times(ref)
         assert not checkpoint_path(out).exists()
     capsys.readouterr()
@@ -151,6 +153,7 @@ def test_interrupted_and_resumed_tuning_equals_the_uninterrupted_one(
     (["--delay", "0.006"], "delay (--delay) = 0.0, this run has 0.006"),
     (["--param", "load.mass=20000"], "overrides"),
     (["--plant", "nonlinear"], "plant (--plant) = 'linear', this run has 'nonlinear'"),
+    (["--restarts", "3"], "restarts (--restarts) = 2, this run has 3"),
 ])
 def test_a_resume_with_another_setting_is_refused_naming_it(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],

@@ -27,14 +27,17 @@ def _checkpoint(state: SearchState, **done: DoneStage) -> Checkpoint:
     setup = setup_record(TuningSetup(controller="stfpi", plant="nonlinear", seed=4,
                                      overrides=(("load.mass", 12345.5),)))
     return Checkpoint(setup=setup, params="ab" * 32, version="9.9", stage="refine",
-                      state=state, done=done)
+                      state=state, done=done, restart=2)
 
 
 def test_checkpoint_round_trip(tmp_path: Path) -> None:
     st = _state(9, 7)
     ck = _checkpoint(st, fpi=DoneStage(gains=(10.0, 5e3, 2e-3), n_evaluations=300,
-                                       generations=40, converged=True),
-                     rise=DoneStage(gains=(10.0, 5e3, 1 / 3), n_evaluations=31))
+                                       generations=40, converged=True, cost=0.1 / 3,
+                                       restart_spread=0.25),
+                     rise=DoneStage(gains=(10.0, 5e3, 1 / 3), n_evaluations=31),
+                     **{"refine#0": DoneStage(gains=(1.0, 2.0, 3.0), n_evaluations=9,
+                                              generations=2, converged=False, cost=7.0)})
     path = save_checkpoint(checkpoint_path(tmp_path / "g.toml"), ck)
     assert path.name == "g.toml.partial.npz"
     back = load_checkpoint(path)
@@ -45,9 +48,9 @@ def test_checkpoint_round_trip(tmp_path: Path) -> None:
     a, b = np.random.default_rng(), np.random.default_rng()
     a.bit_generator.state, b.bit_generator.state = st.rng_state, back.state.rng_state
     assert np.array_equal(a.random(5), b.random(5))
-    assert (back.setup, back.params, back.version, back.stage, back.generation,
-            back.state.n_evaluations, back.done) == (ck.setup, ck.params, "9.9", "refine", 7,
-                                                     st.n_evaluations, ck.done)
+    assert (back.setup, back.params, back.version, back.stage, back.restart,
+            back.generation, back.state.n_evaluations, back.done) == (
+        ck.setup, ck.params, "9.9", "refine", 2, 7, st.n_evaluations, ck.done)
 
 
 def test_a_checkpoint_of_the_earlier_layout_is_refused(tmp_path: Path) -> None:

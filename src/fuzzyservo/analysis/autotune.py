@@ -67,6 +67,9 @@ from .tuning import (
 
 __all__ = [
     "DEFAULT_MAXITER",
+    "DEFAULT_RESTARTS",
+    "MAX_RESTARTS",
+    "RESTART_TOLERANCE",
     "MAX_MAXITER",
     "MAX_POPSIZE",
     "Checkpoint",
@@ -104,6 +107,14 @@ MAX_MAXITER = 5000
 #: Default generation limit of a search stage: a budget the default searches of the study's
 #: designs stay well below (they converge in 40-330 generations, benchmarks/tuning_seeds.py).
 DEFAULT_MAXITER = 500
+#: Default number of independent searches per stage: the self-tuning fuzzy PI's cost has
+#: several basins and one converged search can end in the worse one (docs/model.md).
+DEFAULT_RESTARTS = 3
+#: Largest number of restarts.
+MAX_RESTARTS = 20
+#: Relative disagreement of a stage's restarts above which the tuning warns that the best may
+#: not be the global optimum [-].
+RESTART_TOLERANCE = 0.01
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -142,6 +153,9 @@ class TuningSetup:
         Differential-evolution population multiplier (2 to :data:`MAX_POPSIZE`) and generation
         limit (1 to :data:`MAX_MAXITER`) of each search stage; the limit is a budget, the
         stopping rule normally ends the search first.
+    restarts : int
+        Independent searches per stage (1 to :data:`MAX_RESTARTS`), each from its own
+        initial population; the best is kept and their disagreement recorded.
     patience, rtol, spread : int, float, float
         Stopping rule (:class:`fuzzyservo.analysis.tuning.StopRule`): converged when the best
         cost improved by no more than ``rtol`` (relative) over ``patience`` generations and
@@ -171,6 +185,7 @@ class TuningSetup:
     patience: int = DEFAULT_PATIENCE
     rtol: float = DEFAULT_RTOL
     spread: float = DEFAULT_SPREAD
+    restarts: int = DEFAULT_RESTARTS
     pid_n: float = 100.0
     polish: bool = True
     bounds: GainBounds | None = None
@@ -207,6 +222,9 @@ class TuningSetup:
             raise ParameterError(f"maxiter must be between 1 and {MAX_MAXITER}, got "
                                  f"{self.maxiter!r}")
         StopRule(patience=self.patience, rtol=self.rtol, spread=self.spread)  # checks them
+        if not (isinstance(self.restarts, int) and 1 <= self.restarts <= MAX_RESTARTS):
+            raise ParameterError(f"restarts must be an integer from 1 to {MAX_RESTARTS}, got "
+                                 f"{self.restarts!r}")
         b = self.bounds
         if b is not None and b.names != default_bounds(self.controller, self.step).names:
             raise ParameterError(
@@ -250,7 +268,7 @@ def setup_record(setup: TuningSetup) -> dict[str, Any]:
         "ts": setup.ts, "delay": setup.delay, "objective": setup.objective,
         "seed": setup.seed, "popsize": setup.popsize, "maxiter": setup.maxiter,
         "patience": setup.patience, "rtol": setup.rtol, "spread": setup.spread,
-        "pid_n": setup.pid_n,
+        "restarts": setup.restarts, "pid_n": setup.pid_n,
         "polish": setup.polish, "constraints": cons,
         "bounds": {n: [lo, hi, lg, zr] for n, lo, hi, lg, zr in
                    zip(b.names, b.lower, b.upper, b.log_scale, b.zero, strict=True)},
@@ -264,7 +282,7 @@ _OPTION = {"controller": "--controller", "plant": "--plant", "param_set": "--set
            "objective": "--objective", "seed": "--seed", "popsize": "--popsize",
            "maxiter": "--maxiter", "constraints": "--max-overshoot/--max-sse/--max-u",
            "polish": "--no-polish", "patience": "--patience", "rtol": "--rtol",
-           "spread": "--spread"}
+           "spread": "--spread", "restarts": "--restarts"}
 
 
 def params_digest(params: ServoParams) -> str:
@@ -379,12 +397,18 @@ class DoneStage:
         Closed-loop runs and generations it used.
     converged : bool
         Whether its search met the stopping rule (True for a stage that is not a search).
+    cost : float
+        Its penalised cost (to pick the best of a stage's restarts) [-].
+    restart_spread : float
+        Relative disagreement of the stage's restarts, (worst - best) / best [-].
     """
 
     gains: tuple[float, ...]
     n_evaluations: int
     generations: int = 0
     converged: bool = True
+    cost: float = 0.0
+    restart_spread: float = 0.0
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -401,10 +425,12 @@ class Checkpoint:
         fuzzyservo version that wrote it.
     stage : str
         Stage that was running.
+    restart : int
+        Which of the stage's independent searches (0-based).
     state : SearchState
-        That stage's search state after its last completed generation.
+        That search's state after its last completed generation.
     done : dict
-        Completed stages by name.
+        Completed stages by name, and completed restarts as ``"NAME#R"``.
     """
 
     setup: dict[str, Any]
@@ -413,6 +439,7 @@ class Checkpoint:
     stage: str
     state: SearchState
     done: dict[str, DoneStage] = field(default_factory=dict)
+    restart: int = 0
 
     @property
     def generation(self) -> int:
@@ -436,6 +463,8 @@ class TuningProgress:
         Closed-loop runs so far in this stage.
     checkpoint : Checkpoint
         Everything needed to resume from here.
+    restart, restarts : int
+        Which independent search of the stage this is (0-based), of how many.
     """
 
     stage: str
@@ -444,6 +473,8 @@ class TuningProgress:
     best_cost: float
     n_evaluations: int
     checkpoint: Checkpoint
+    restart: int = 0
+    restarts: int = 1
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -470,6 +501,9 @@ class StageRecord:
         Whether its search met the stopping rule (True for a stage that is not a search).
     at_bounds : dict
         Searched gains that ended on a bound of the stage's box, ``{name: "lower"|"upper"}``.
+    restart_spread : float
+        Relative disagreement of the stage's independent searches, (worst - best) / best of
+        their penalised costs (0 for one search or a stage that is not a search) [-].
     """
 
     name: str
@@ -481,6 +515,7 @@ class StageRecord:
     generations: int = 0
     converged: bool = True
     at_bounds: dict[str, str] = field(default_factory=dict)
+    restart_spread: float = 0.0
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -520,6 +555,10 @@ class TunedGains:
     at_bounds : dict
         Searched gains of the result that end on a bound of the default box,
         ``{name: "lower"|"upper"}`` (a PID's ki or kd at 0 is on its lower bound).
+    restart_spread : float
+        Largest disagreement of a search stage's independent searches [-]; above
+        :data:`RESTART_TOLERANCE` the cost has several optima the searches ended in, and the
+        best found may not be the global one.
     """
 
     controller: str
@@ -537,6 +576,7 @@ class TunedGains:
     converged: bool = True
     generations: int = 0
     at_bounds: dict[str, str] = field(default_factory=dict)
+    restart_spread: float = 0.0
 
     def stage(self, name: str) -> StageRecord:
         """The record of stage ``name``."""
@@ -557,8 +597,8 @@ class TunedGains:
 
 def _record(name: str, setup: TuningSetup, kind: ControllerKind, searched: FloatArray,
             metrics: Mapping[str, Any], n_eval: int, *, generations: int = 0,
-            converged: bool = True, at_bounds: Mapping[str, str] | None = None
-            ) -> StageRecord:
+            converged: bool = True, at_bounds: Mapping[str, str] | None = None,
+            restart_spread: float = 0.0) -> StageRecord:
     m = {k: float(np.asarray(v).reshape(-1)[0]) for k, v in metrics.items()}
     feasible = bool(constraint_violation({k: np.array([v]) for k, v in m.items()},
                                          setup.constraints, setup.step)[0] == 0.0)
@@ -566,12 +606,19 @@ def _record(name: str, setup: TuningSetup, kind: ControllerKind, searched: Float
     return StageRecord(name=name, gains=gains, metrics=m,
                        objective_value=m[setup.objective], feasible=feasible,
                        n_evaluations=n_eval, generations=generations, converged=converged,
-                       at_bounds=dict(at_bounds or {}))
+                       at_bounds=dict(at_bounds or {}), restart_spread=restart_spread)
+
+
+def restart_seed(seed: int, restart: int) -> int:
+    """Seed of restart ``restart`` of a search seeded ``seed`` (restart 0 is ``seed``)."""
+    if restart == 0:
+        return seed
+    return int(np.random.SeedSequence([seed, restart]).generate_state(1)[0])
 
 
 def _search(setup: TuningSetup, evaluate: Evaluator, bounds: GainBounds, stage: str, *,
             popsize: int, init: FloatArray | None, resume: SearchState | None,
-            snapshot: Callable[[str, SearchState], Checkpoint],
+            restart: int, snapshot: Callable[[str, int, SearchState], Checkpoint],
             progress: Callable[[TuningProgress], None] | None) -> TuningResult:
     def on_gen(state: SearchState) -> None:
         if progress is not None:
@@ -579,11 +626,13 @@ def _search(setup: TuningSetup, evaluate: Evaluator, bounds: GainBounds, stage: 
                                     max_generations=setup.maxiter,
                                     best_cost=state.best_cost,
                                     n_evaluations=state.n_evaluations,
-                                    checkpoint=snapshot(stage, state)))
+                                    checkpoint=snapshot(stage, restart, state),
+                                    restart=restart, restarts=setup.restarts))
 
     try:
         return tune(evaluate, bounds, objective=setup.objective,
-                    constraints=setup.constraints, step_size=setup.step, seed=setup.seed,
+                    constraints=setup.constraints, step_size=setup.step,
+                    seed=restart_seed(setup.seed, restart),
                     popsize=popsize, maxiter=setup.maxiter, stop=setup.stop,
                     polish=setup.polish, init=init, resume=resume, on_generation=on_gen)
     except Exception as exc:
@@ -770,39 +819,53 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
     digest = params_digest(params)
     version = _version()
 
-    def snapshot(stage: str, state: SearchState) -> Checkpoint:
+    def snapshot(stage: str, restart: int, state: SearchState) -> Checkpoint:
         return Checkpoint(setup=record, params=digest, version=version, stage=stage,
-                          state=state, done=dict(done))
+                          state=state, done=dict(done), restart=restart)
 
-    def resumed(stage: str) -> SearchState | None:
-        return resume.state if resume is not None and resume.stage == stage else None
+    def resumed(stage: str, restart: int) -> SearchState | None:
+        if resume is not None and (resume.stage, resume.restart) == (stage, restart):
+            return resume.state
+        return None
 
     def search(name: str, evaluate: Evaluator, box: GainBounds, popsize: int,
-               init: FloatArray | None) -> tuple[FloatArray, StageRecord]:
-        res = _search(setup, evaluate, box, name, popsize=popsize, init=init,
-                      resume=resumed(name), snapshot=snapshot, progress=progress)
-        g = np.array([[res.gains[n] for n in box.names]])
-        flags = bounds.at_bounds(g[0])
-        done[name] = DoneStage(gains=tuple(float(v) for v in g[0]),
-                               n_evaluations=res.n_evaluations, generations=res.generations,
-                               converged=res.converged)
-        return g, _record(name, setup, kind_of[name], g, res.metrics, res.n_evaluations,
-                          generations=res.generations, converged=res.converged,
-                          at_bounds=flags)
+               init: Callable[[int], FloatArray | None]) -> tuple[FloatArray, StageRecord]:
+        for r in range(setup.restarts):
+            key = f"{name}#{r}"
+            if key in done:
+                continue
+            res = _search(setup, evaluate, box, name, popsize=popsize, init=init(r),
+                          resume=resumed(name, r), restart=r, snapshot=snapshot,
+                          progress=progress)
+            done[key] = DoneStage(gains=tuple(float(res.gains[n]) for n in box.names),
+                                  n_evaluations=res.n_evaluations,
+                                  generations=res.generations, converged=res.converged,
+                                  cost=res.cost)
+        runs = [done.pop(f"{name}#{r}") for r in range(setup.restarts)]
+        costs = [d.cost for d in runs]
+        best = runs[int(np.argmin(costs))]  # the first of equal ones
+        low = min(costs)
+        spread = (max(costs) - low) / max(abs(low), 1e-12)
+        done[name] = DoneStage(gains=best.gains,
+                               n_evaluations=sum(d.n_evaluations for d in runs),
+                               generations=sum(d.generations for d in runs),
+                               converged=all(d.converged for d in runs), cost=best.cost,
+                               restart_spread=spread)
+        return replay(name, evaluate)
 
     def replay(name: str, evaluate: Evaluator) -> tuple[FloatArray, StageRecord]:
         d = done[name]
         g = np.array([d.gains])
         return g, _record(name, setup, kind_of[name], g, evaluate(g), d.n_evaluations,
                           generations=d.generations, converged=d.converged,
-                          at_bounds=bounds.at_bounds(g[0]))
+                          at_bounds=bounds.at_bounds(g[0]), restart_spread=d.restart_spread)
 
     stages: list[StageRecord] = []
     if kind.tuning == "search":
         kind_of = {"search": kind}
         evaluate = _evaluator(setup, kind, params, systems)
         _, rec = (replay("search", evaluate) if "search" in done else
-                  search("search", evaluate, bounds, setup.popsize, None))
+                  search("search", evaluate, bounds, setup.popsize, lambda r: None))
         stages.append(rec)
     else:
         assert kind.stage_kind is not None and kind.rise_gain is not None
@@ -816,7 +879,7 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
         ev = _evaluator(setup, kind, params, systems)
         # step 1: the stage kind (the fuzzy PI, alpha = 1)
         g1, rec1 = (replay(first.name, ev1) if first.name in done else
-                    search(first.name, ev1, bounds, setup.popsize, None))
+                    search(first.name, ev1, bounds, setup.popsize, lambda r: None))
         stages.append(rec1)
         # step 2: the other gains kept; raise the output gain until the rise time is back
         if "rise" in done:
@@ -839,9 +902,12 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
             _, rec3 = replay("refine", ev)
         else:
             m = max(5, setup.popsize * len(bounds.names))
-            rng = np.random.default_rng(setup.seed)
-            u = rng.random((m - 2, len(bounds.names)))
-            init3 = np.vstack([g2, g1, bounds.from_unit(u)])
+
+            def init3(r: int) -> FloatArray:
+                rng = np.random.default_rng(restart_seed(setup.seed, r))
+                u = rng.random((m - 2, len(bounds.names)))
+                return np.vstack([g2, g1, bounds.from_unit(u)])
+
             _, rec3 = search("refine", ev, bounds, setup.popsize, init3)
         stages.append(rec3)
     final = stages[-1]
@@ -857,7 +923,8 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
         version=version, date=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         converged=all(s.converged for s in searches),
         generations=sum(s.generations for s in searches),
-        at_bounds=dict(final.at_bounds))
+        at_bounds=dict(final.at_bounds),
+        restart_spread=max((s.restart_spread for s in searches), default=0.0))
 
 
 def stage_as_tuned(tuned: TunedGains, stage: str) -> TunedGains:
@@ -875,4 +942,4 @@ def stage_as_tuned(tuned: TunedGains, stage: str) -> TunedGains:
                    setup=replace(tuned.setup, controller=s.name),
                    n_evaluations=s.n_evaluations, stages=(s,), cost=cost,
                    converged=s.converged, generations=s.generations,
-                   at_bounds=dict(s.at_bounds))
+                   at_bounds=dict(s.at_bounds), restart_spread=s.restart_spread)

@@ -32,8 +32,11 @@ from typing import Any
 from .._io import check_output_path
 from ..analysis.autotune import (
     DEFAULT_MAXITER,
+    DEFAULT_RESTARTS,
     MAX_MAXITER,
     MAX_POPSIZE,
+    MAX_RESTARTS,
+    RESTART_TOLERANCE,
     Checkpoint,
     TuningProgress,
     TuningSetup,
@@ -86,6 +89,9 @@ def register(subparsers: Any) -> None:
                         f"--rtol over N generations (default {DEFAULT_STOP.patience})")
     p.add_argument("--rtol", type=float, default=DEFAULT_STOP.rtol, metavar="R",
                    help=f"stopping rule's relative improvement (default {DEFAULT_STOP.rtol:g})")
+    p.add_argument("--restarts", type=int, default=DEFAULT_RESTARTS, metavar="N",
+                   help=f"independent searches per stage, 1 to {MAX_RESTARTS}; the best is kept "
+                        f"and their disagreement reported (default {DEFAULT_RESTARTS})")
     p.add_argument("--spread", type=float, default=DEFAULT_STOP.spread, metavar="S",
                    help=f"stopping rule: the population's median cost within S (relative) of "
                         f"the best (default {DEFAULT_STOP.spread:g})")
@@ -127,7 +133,7 @@ def _setup(args: argparse.Namespace, params: ServoParams) -> TuningSetup:
                                       max_steady_state_error=args.max_sse / 100.0,
                                       max_u=args.max_u),
         seed=args.seed, popsize=args.popsize, maxiter=args.maxiter, patience=args.patience,
-        rtol=args.rtol, spread=args.spread, polish=args.polish)
+        rtol=args.rtol, spread=args.spread, restarts=args.restarts, polish=args.polish)
 
 
 class _Progress:
@@ -145,22 +151,23 @@ class _Progress:
         self.latest = p.checkpoint
         if self.quiet:
             return
-        if p.stage != self.stage:
+        label = p.stage + (f" {p.restart + 1}/{p.restarts}" if p.restarts > 1 else "")
+        if label != self.stage:
             self.close()
-            self.stage = p.stage
+            self.stage = label
             if not self.plain:
                 from tqdm import tqdm
 
                 # counts on from a resumed generation; the bar ends early when converged
                 self.bar = tqdm(total=p.max_generations, initial=p.generation,
-                                desc=f"tune {p.stage}", unit="gen", file=sys.stderr,
+                                desc=f"tune {label}", unit="gen", file=sys.stderr,
                                 leave=True)
         if self.bar is not None:
             self.bar.set_postfix(best=f"{p.best_cost:.6g}", runs=p.n_evaluations)
             self.bar.n = p.generation
             self.bar.refresh()
         elif p.generation % 10 == 0 or p.generation == 1:
-            print(f"tune {p.stage}: generation {p.generation}/{p.max_generations}, "
+            print(f"tune {label}: generation {p.generation}/{p.max_generations}, "
                   f"best cost {p.best_cost:.4g}, {p.n_evaluations} runs", file=sys.stderr,
                   flush=True)
 
@@ -215,6 +222,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"fuzzyservo: warning: {name} ended on its {side} bound ({edge:g})"
               + (": the term is switched off" if edge == 0.0 else
                  ": the optimum may lie outside the search box"), file=sys.stderr)
+    for st in tuned.stages:
+        if st.restart_spread > RESTART_TOLERANCE:
+            print(f"fuzzyservo: warning: the {setup.restarts} searches of stage {st.name} "
+                  f"ended {100 * st.restart_spread:.3g} % apart in cost: it has several "
+                  f"optima and the best found may not be the global one (raise --restarts "
+                  f"or --popsize)", file=sys.stderr)
     if not tuned.converged:
         print(f"fuzzyservo: warning: the search did not converge within --maxiter "
               f"{setup.maxiter} generations per stage (stopping rule: best cost improving "

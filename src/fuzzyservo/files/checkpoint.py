@@ -43,10 +43,12 @@ def save_checkpoint(path: str | Path, ckpt: Checkpoint) -> Path:
     st = ckpt.state
     header = json.dumps({
         "format": FORMAT, "setup": ckpt.setup, "params": ckpt.params,
-        "version": ckpt.version, "stage": ckpt.stage, "generation": st.generation,
+        "version": ckpt.version, "stage": ckpt.stage, "restart": ckpt.restart,
+        "generation": st.generation,
         "n_evaluations": st.n_evaluations, "rng_state": st.rng_state,
         "done": {k: {"gains": list(d.gains), "n_evaluations": d.n_evaluations,
-                     "generations": d.generations, "converged": d.converged}
+                     "generations": d.generations, "converged": d.converged,
+                     "cost": d.cost, "restart_spread": d.restart_spread}
                  for k, d in ckpt.done.items()}})
     with atomic_write(path, binary=True) as fh:
         np.savez(fh, population=np.asarray(st.population, dtype=np.float64),
@@ -98,11 +100,12 @@ def load_checkpoint(path: str | Path) -> Checkpoint:
         done = {str(k): DoneStage(gains=tuple(float(x) for x in v["gains"]),
                                   n_evaluations=int(v["n_evaluations"]),
                                   generations=int(v["generations"]),
-                                  converged=bool(v["converged"]))
+                                  converged=bool(v["converged"]), cost=float(v["cost"]),
+                                  restart_spread=float(v["restart_spread"]))
                 for k, v in dict(h["done"]).items()}
         return Checkpoint(setup=dict(h["setup"]), params=str(h["params"]),
                           version=str(h["version"]), stage=str(h["stage"]), state=state,
-                          done=done)
+                          done=done, restart=int(h["restart"]))
     except (OSError, EOFError, ValueError, KeyError, TypeError, AttributeError,
             zipfile.BadZipFile, zlib.error, struct.error) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__

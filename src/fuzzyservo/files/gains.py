@@ -66,13 +66,15 @@ def write_gains_toml(path: str | Path, tuned: TunedGains) -> Path:
         "result": {"objective_value": tuned.objective_value, "cost": tuned.cost,
                    "feasible": tuned.feasible, "converged": tuned.converged,
                    "generations": tuned.generations, "n_evaluations": tuned.n_evaluations,
-                   "at_bounds": dict(tuned.at_bounds), "elapsed": tuned.elapsed,
+                   "at_bounds": dict(tuned.at_bounds),
+                   "restart_spread": tuned.restart_spread, "elapsed": tuned.elapsed,
                    "fuzzyservo_version": tuned.version, "date": tuned.date},
         "metrics": dict(tuned.metrics),
         "stages": [{"name": st.name, "gains": dict(st.gains), "metrics": dict(st.metrics),
                     "objective_value": st.objective_value, "feasible": st.feasible,
                     "n_evaluations": st.n_evaluations, "generations": st.generations,
-                    "converged": st.converged, "at_bounds": dict(st.at_bounds)}
+                    "converged": st.converged, "at_bounds": dict(st.at_bounds),
+                    "restart_spread": st.restart_spread}
                    for st in tuned.stages],
     }
     return write_text_atomic(path, tomli_w.dumps(doc))
@@ -181,7 +183,8 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
             bounds=bounds, **({} if layout == 1 else {
                 "patience": rd.get(tu, "patience", int, w),
                 "rtol": rd.get(tu, "rtol", float, w),
-                "spread": rd.get(tu, "spread", float, w)}))
+                "spread": rd.get(tu, "spread", float, w),
+                "restarts": rd.get(tu, "restarts", int, w)}))
     except ParameterError as exc:
         raise InputError(f"{str(path)!r}: {exc}") from exc
     res = rd.get(doc, "result", dict, "")
@@ -203,7 +206,8 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
                 "generations": rd.get(st, "generations", int, sw),
                 "converged": rd.get(st, "converged", bool, sw),
                 "at_bounds": _sides(rd, rd.get(st, "at_bounds", dict, sw),
-                                    sw + "at_bounds.")})))
+                                    sw + "at_bounds."),
+                "restart_spread": rd.get(st, "restart_spread", float, sw)})))
     return TunedGains(
         controller=controller, gains=gains, metrics=metrics,
         objective_value=rd.get(res, "objective_value", float, w),
@@ -214,7 +218,8 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
         **({"converged": False} if layout == 1 else {
             "converged": rd.get(res, "converged", bool, w),
             "generations": rd.get(res, "generations", int, w),
-            "at_bounds": _sides(rd, rd.get(res, "at_bounds", dict, w), "result.at_bounds.")}))
+            "at_bounds": _sides(rd, rd.get(res, "at_bounds", dict, w), "result.at_bounds."),
+            "restart_spread": rd.get(res, "restart_spread", float, w)}))
 
 
 def _sides(rd: _Reader, table: Mapping[str, Any], where: str) -> dict[str, str]:
