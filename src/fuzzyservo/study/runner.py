@@ -39,7 +39,13 @@ from pathlib import Path
 from typing import Any
 
 from .._io import sha256_file, strict_json, write_text_atomic
-from ..analysis.autotune import TunedGains, TuningSetup, stage_as_tuned, tune_controller
+from ..analysis.autotune import (
+    RESTART_TOLERANCE,
+    TunedGains,
+    TuningSetup,
+    stage_as_tuned,
+    tune_controller,
+)
 from ..analysis.tuning import TuningConstraints
 from ..errors import InputError
 from ..files import read_gains_toml, write_gains_toml
@@ -199,10 +205,19 @@ def _notes(plant: str, tuned: Mapping[str, TunedGains]) -> dict[str, str]:
     for key, (name, _) in TUNED_DESIGNS.items():
         t = tuned[name]
         c = t.setup.constraints
+        search = (f"{t.generations} generations, "
+                  + ("converged" if t.converged else "NOT converged (generation limit)")
+                  + f"; {t.setup.restarts} searches per stage "
+                  + (f"agree within {100 * t.restart_spread:.2g} %"
+                     if t.restart_spread <= RESTART_TOLERANCE else
+                     f"DISAGREE by {100 * t.restart_spread:.3g} % (several optima: the best "
+                     f"is kept, it may not be the global one)"))
+        bound = (", on a bound: " + ", ".join(f"{g} ({side})" for g, side in
+                                               t.at_bounds.items())) if t.at_bounds else ""
         notes[f"{plant}:{key}"] = (
             f"tuned: {t.setup.objective.upper()}, overshoot <= {c.max_overshoot} %, "
             f"|sse| <= {c.max_steady_state_error} of the step, seed {t.setup.seed}, "
-            f"{t.setup.duration:g} s runs, {t.n_evaluations} runs in {t.elapsed:.1f} s")
+            f"{t.setup.duration:g} s runs; {search}{bound}; {t.n_evaluations} runs")
     return notes
 
 
