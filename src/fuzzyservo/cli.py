@@ -67,9 +67,16 @@ def _unraisable(previous: Any) -> Any:
             timer = _STOP["timer"]
             if timer is None or not timer.is_alive():  # one signal again, not one per swallow
                 signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
-                # sent from another thread, it is handled once this hook has returned
-                _STOP["timer"] = threading.Timer(0.005, _resend, (signum,))
-                _STOP["timer"].start()
+                # sent from another thread, it is handled once this hook has returned; 50 ms
+                # leave the hook time to return on a loaded machine, and if the signal still
+                # lands in here (while start() waits for the thread), it is sent once more
+                while True:
+                    try:
+                        _STOP["timer"] = threading.Timer(0.05, _resend, (signum,))
+                        _STOP["timer"].start()
+                        break
+                    except KeyboardInterrupt:
+                        continue
             return
         previous(unraisable)
     return hook

@@ -18,7 +18,14 @@ import pytest
 import fuzzyservo.analysis.autotune as autotune
 import fuzzyservo.commands.linearize as linearize_cmd
 import fuzzyservo.commands.tune as tune_cmd
-from fuzzyservo.analysis.autotune import MAX_MAXITER, MAX_POPSIZE, Checkpoint
+from fuzzyservo.analysis.autotune import (
+    MAX_MAXITER,
+    MAX_POPSIZE,
+    Checkpoint,
+    TuningSetup,
+    setup_record,
+)
+from fuzzyservo.analysis.tuning import SearchState
 from fuzzyservo.cli import main
 from fuzzyservo.errors import ParameterError
 from fuzzyservo.files import checkpoint_path, save_checkpoint
@@ -180,9 +187,13 @@ def test_row11_truncated_checkpoint(tmp_path: Path, capsys: pytest.CaptureFixtur
                                     no_search: None) -> None:
     out = tmp_path / "g.toml"
     ckpt = checkpoint_path(out)
-    save_checkpoint(ckpt, Checkpoint(controller="pid", plant="linear", objective="itae",
-                                     seed=0, stage="search", generation=3,
-                                     population=np.random.default_rng(0).random((30, 3))))
+    rng = np.random.default_rng(0)
+    state = SearchState(generation=3, population=rng.random((30, 3)), costs=rng.random(30),
+                        rng_state=dict(rng.bit_generator.state), history=(4.0, 3.0, 2.0, 1.0),
+                        n_evaluations=120)
+    save_checkpoint(ckpt, Checkpoint(setup=setup_record(TuningSetup(controller="pid")),
+                                     params="0" * 64, version="0", stage="search",
+                                     state=state))
     data = ckpt.read_bytes()[:800]
     ckpt.write_bytes(data)
     err = _error([*TUNE, "--out", str(out), "--resume"], capsys)

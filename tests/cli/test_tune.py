@@ -3,15 +3,17 @@ errors with status 2, and an interrupted run that resumes from its checkpoint.""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 import fuzzyservo.commands.tune as tune_cmd
 from fuzzyservo.analysis.autotune import TuningProgress
 from fuzzyservo.cli import main
-from fuzzyservo.files import checkpoint_path, load_checkpoint, read_gains_toml
+from fuzzyservo.files import checkpoint_path, load_checkpoint, read_gains_toml, save_checkpoint
 from tests.helpers import printed_metrics
 
 REAL_TUNE = tune_cmd.tune_controller
@@ -167,3 +169,48 @@ def test_a_resume_with_another_setting_is_refused_naming_it(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and needle in err and "partial.npz" in err
     assert checkpoint_path(out).exists() and not out.exists()
+
+
+def _tamper(ck: Any, kind: str) -> Any:
+    st = ck.state
+    if kind == "population":
+        return dataclasses.replace(ck, state=dataclasses.replace(
+            st, population=st.population[:2]))
+    if kind == "range":
+        return dataclasses.replace(ck, state=dataclasses.replace(
+            st, population=st.population * 3.0))
+    if kind == "costs":
+        return dataclasses.replace(ck, state=dataclasses.replace(
+            st, costs=np.full_like(st.costs, np.nan)))
+    if kind == "history":
+        return dataclasses.replace(ck, state=dataclasses.replace(st, history=st.history[:-1]))
+    if kind == "generation":
+        return dataclasses.replace(ck, state=dataclasses.replace(st, generation=-5))
+    if kind == "stage":
+        return dataclasses.replace(ck, stage="polish")
+    if kind == "restart":
+        return dataclasses.replace(ck, restart=7)
+    raise AssertionError(kind)
+
+
+@pytest.mark.parametrize(("kind", "needle"), [
+    ("population", "must hold"), ("range", "in [0, 1]"), ("costs", "finite numbers"),
+    ("history", "history"), ("generation", "generation -5"), ("stage", "'polish'"),
+    ("restart", "restart 7"),
+])
+def test_a_damaged_checkpoint_is_one_line_not_a_traceback(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str],
+        kind: str, needle: str) -> None:
+    """Found in review: a population of two members was a traceback, and a NaN cost, a short
+    history or a negative generation count were accepted and gave wrong counts."""
+    out = tmp_path / "g.toml"
+    _interrupting(monkeypatch, "search", 3)
+    assert main(["tune", "--controller", "pid", "--out", str(out), *FAST]) == 130
+    monkeypatch.setattr(tune_cmd, "tune_controller", REAL_TUNE)
+    ck = checkpoint_path(out)
+    save_checkpoint(ck, _tamper(load_checkpoint(ck), kind))
+    capsys.readouterr()
+    assert main(["tune", "--controller", "pid", "--out", str(out), "--resume", *FAST]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and needle in err and "without --resume" in err
+    assert not out.exists()

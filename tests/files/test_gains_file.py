@@ -99,7 +99,8 @@ def test_bad_gains_file_names_the_key(tmp_path: Path, tuned_stfpi: TunedGains,
 def test_a_one_dof_pid_file_with_setpoint_weights_points_to_pid2(tmp_path: Path) -> None:
     text = (GAINS_DIR / "linear-pid.toml").read_text(encoding="utf-8")
     path = tmp_path / "w.toml"
-    path.write_text(text.replace("b = 1.0", "b = 0.5", 1), encoding="utf-8")
+    assert "\n[gains]\n" in text and "b = " not in text.split("[tuning]")[0]
+    path.write_text(text.replace("\n[gains]\n", "\n[gains]\nb = 0.5\n", 1), encoding="utf-8")
     with pytest.raises(InputError, match="pid .*has b = 1, got b = 0.5; use pid2"):
         read_gains_toml(path)
 
@@ -167,3 +168,28 @@ def test_gains_file_bounds_must_be_numbers(tmp_path: Path, tuned_stfpi: TunedGai
     path.write_text(tomli_w.dumps(doc), encoding="utf-8")
     with pytest.raises(InputError, match=f"'tuning.bounds.{first}.upper' has the wrong type"):
         read_gains_toml(path)
+
+
+def test_a_layout_one_file_is_read_as_one_unconverged_search(tmp_path: Path) -> None:
+    """Files written before the converged tuner (layout 1) are still read; they hold one
+    scipy search of 40 generations, so they say restarts = 1 and not converged."""
+    import tomllib
+
+    import tomli_w
+
+    doc = tomllib.loads((GAINS_DIR / "linear-pid2.toml").read_text(encoding="utf-8"))
+    doc["format"] = 1
+    del doc["structure"]
+    for key in ("patience", "rtol", "spread", "restarts"):
+        del doc["tuning"][key]
+    doc["tuning"]["bounds"] = {k: v[:3] for k, v in doc["tuning"]["bounds"].items()}
+    for table in (doc["result"], *doc["stages"]):
+        for key in ("converged", "generations", "at_bounds", "restart_spread"):
+            del table[key]
+    path = tmp_path / "old.toml"
+    path.write_text(tomli_w.dumps(doc), encoding="utf-8")
+    old = read_gains_toml(path)
+    assert old.setup.restarts == 1 and not old.converged
+    assert not any(s.converged for s in old.stages)
+    assert old.gains == read_gains_toml(GAINS_DIR / "linear-pid2.toml").gains
+    assert old.setup.search_bounds().zero == (False,) * 4  # layout 1 had no zero region

@@ -696,15 +696,45 @@ def _check_resume(resume: Checkpoint, setup: TuningSetup, params: ServoParams,
         raise ParameterError(f"the checkpoint was made by fuzzyservo {resume.version}, this "
                              f"is {_version()}: run without --resume")
     k = len(bounds.names)
-    pop = resume.state.population
-    if (pop.ndim != 2 or pop.shape[1] != k or pop.shape[0] != resume.state.costs.shape[0]
-            or not np.all(np.isfinite(pop))):
-        raise ParameterError(f"checkpoint population must be finite with {k} columns "
-                             f"({', '.join(bounds.names)}), got shape {pop.shape}; delete the "
-                             f"checkpoint or run without --resume")
+    st = resume.state
+    pop = st.population
+    stages = (("search",) if setup.kind.tuning == "search" else
+              (str(setup.kind.stage_kind), "refine"))
+
+    def bad(what: str) -> ParameterError:
+        return ParameterError(f"the checkpoint is damaged: {what}; delete it or run without "
+                              f"--resume")
+
+    m = max(5, setup.popsize * k)  # every search stage, the refinement too
+    if resume.stage not in stages:
+        raise bad(f"stage {resume.stage!r} is not one of {', '.join(stages)}")
+    if not (isinstance(resume.restart, int) and 0 <= resume.restart < setup.restarts):
+        raise bad(f"restart {resume.restart!r} is not in 0..{setup.restarts - 1}")
+    if (pop.ndim != 2 or pop.shape[1] != k or pop.shape[0] != m
+            or not np.all(np.isfinite(pop)) or np.any(pop < 0.0) or np.any(pop > 1.0)):
+        raise ParameterError(f"the checkpoint population must hold {m} members with {k} columns "
+                             f"({', '.join(bounds.names)}) in [0, 1], got shape {pop.shape}; "
+                             f"delete the checkpoint or run without --resume")
+    costs = st.costs
+    if costs.shape != (pop.shape[0],) or not np.all(np.isfinite(costs)):
+        raise bad(f"its costs must be {pop.shape[0]} finite numbers, got shape {costs.shape}")
+    if not (isinstance(st.generation, int) and 0 <= st.generation <= setup.maxiter):
+        raise bad(f"generation {st.generation!r} is not in 0..{setup.maxiter}")
+    if (len(st.history) != st.generation + 1
+            or not all(math.isfinite(h) for h in st.history)):
+        raise bad(f"its history must hold {st.generation + 1} finite costs, got "
+                  f"{len(st.history)}")
+    if st.n_evaluations < pop.shape[0] * (st.generation + 1):
+        raise bad(f"{st.n_evaluations} runs is fewer than its generations need")
+    names = {f"{s}#{r}" for s in stages for r in range(setup.restarts)} | set(stages) | {"rise"}
+    for name in resume.done:
+        if name not in names:
+            raise bad(f"completed stage {name!r} is not one of this tuning's")
+        if not math.isfinite(resume.done[name].cost):
+            raise bad(f"completed stage {name!r} has a cost that is not finite")
     for name, d in resume.done.items():
         if len(d.gains) != k or not all(math.isfinite(x) for x in d.gains):
-            raise ParameterError(f"checkpoint stage {name!r} must hold {k} finite gains, got "
+            raise ParameterError(f"the checkpoint stage {name!r} must hold {k} finite gains, got "
                                  f"{len(d.gains)}; delete the checkpoint or run without "
                                  f"--resume")
 
@@ -805,8 +835,8 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
     ``"paper-steps"`` procedure is the paper's Sec. III A, steps 1-3; step 2's rise-time
     match is a batched bracketing of the output gain (kdu) on a log grid followed by
     bisection to the smallest value >= step 1's whose 10-90 % rise time does not exceed step
-    1's; step 3 is a differential evolution (``popsize`` 5) in the box spanning steps 1 and 2
-    widened by a factor 3, its population seeded with both.
+    1's; step 3 is a search over the whole box, its initial population holding steps 1 and 2.
+    Every search stage runs ``setup.restarts`` independent searches and keeps the best.
     """
     t0 = time.perf_counter()
     kind = setup.kind

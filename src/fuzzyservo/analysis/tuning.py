@@ -35,6 +35,7 @@ __all__ = [
     "DEFAULT_RTOL",
     "DEFAULT_SPREAD",
     "FINAL_ERROR",
+    "INFEASIBLE_STEP",
     "OBJECTIVES",
     "ZERO_DECADES",
     "GainBounds",
@@ -62,6 +63,11 @@ FINAL_ERROR = "final_error_max"
 _INFEASIBLE = 1.0e6
 #: Weight of one unit of normalised constraint violation, in units of the normalised objective.
 _PENALTY = 100.0
+#: Cost added to any violation, however small [units of the normalised objective]: with the
+#: L1 penalty alone the optimum sits on a constraint's boundary and the search could end a
+#: hair on its infeasible side (an overshoot of 0.50000001 % against a 0.5 % limit); the step
+#: makes every feasible neighbour cheaper.
+INFEASIBLE_STEP = 1e-3
 
 #: Width of the "zero" region of a gain that may be 0 [decades of its log scale]: the search
 #: coordinate extends this far below log10(lower), and every value there means the gain is 0.
@@ -394,7 +400,8 @@ def penalised_cost(metrics: Mapping[str, FloatArray], objective: str,
         raise ParameterError(f"objective must be one of {OBJECTIVES}, got {objective!r}")
     j = np.asarray(metrics[objective], dtype=np.float64)
     j = j / (step_size ** 2 if objective == "ise" else step_size)
-    cost = j + _PENALTY * constraint_violation(metrics, constraints, step_size)
+    v = constraint_violation(metrics, constraints, step_size)
+    cost = j + _PENALTY * v + np.where(v > 0.0, INFEASIBLE_STEP, 0.0)
     return np.where(np.isfinite(cost), cost, _INFEASIBLE)
 
 
@@ -545,16 +552,26 @@ def tune(evaluate: Evaluator, bounds: GainBounds, *, objective: str = "itae",
             u_best, f_best = np.asarray(pol.x, dtype=np.float64), float(pol.fun)
     # parsimony: a term that may be 0 and whose removal costs no more than the stopping
     # rule's tolerance is switched off (ki = 1e-3 next to kp = 8.5 is a P controller)
+    # (kept only if it stays feasible when the best was; its own cost is then reported)
     zlo, zhi = bounds._ends()
+    best_feasible: bool | None = None
     for j in range(k):
         g_j = float(bounds.from_unit(u_best[None, :])[0, j])
         if bounds.zero[j] and g_j > 0.0:
+            if best_feasible is None:
+                m_best = evaluate(bounds.from_unit(u_best[None, :]))
+                n_eval += 1
+                best_feasible = bool(
+                    constraint_violation(m_best, constraints, step_size)[0] == 0.0)
             u_off = u_best.copy()
             u_off[j] = 0.5 * ZERO_DECADES / (zhi[j] - zlo[j])  # middle of the zero region
-            f_off = float(cost_of(u_off)[0])
+            m_off = evaluate(bounds.from_unit(u_off[None, :]))
             n_eval += 1
-            if f_off <= f_best + stop.rtol * max(abs(f_best), 1e-12):
-                u_best, f_best = u_off, min(f_best, f_off)
+            f_off = float(penalised_cost(m_off, objective, constraints, step_size)[0])
+            stays = (not best_feasible
+                     or float(constraint_violation(m_off, constraints, step_size)[0]) == 0.0)
+            if stays and f_off <= f_best + stop.rtol * max(abs(f_best), 1e-12):
+                u_best, f_best = u_off, f_off
     gains = bounds.from_unit(u_best[None, :])
     metrics = evaluate(gains)
     n_eval += 1

@@ -197,8 +197,11 @@ def run(args: argparse.Namespace) -> int:
         if progress.latest is None:  # nothing to save yet: the CLI's one line says so
             raise
         save_checkpoint(ckpt_file, progress.latest)
+        restart = (f" (search {progress.latest.restart + 1} of {setup.restarts})"
+                   if setup.restarts > 1 else "")
         print(f"fuzzyservo: interrupted; search state saved to {ckpt_file} after "
-              f"generation {progress.latest.generation} of stage {progress.latest.stage} "
+              f"generation {progress.latest.generation} of stage {progress.latest.stage}"
+              f"{restart} "
               f"(continue with the same options and --resume)", file=sys.stderr)
         return 130
     progress.close()
@@ -219,9 +222,10 @@ def run(args: argparse.Namespace) -> int:
     for name, side in tuned.at_bounds.items():
         i = box.names.index(name)
         edge = box.lowest()[i] if side == "lower" else box.upper[i]
+        off = box.zero[i] and side == "lower"
         print(f"fuzzyservo: warning: {name} ended on its {side} bound ({edge:g})"
-              + (": the term is switched off" if edge == 0.0 else
-                 ": the optimum may lie outside the search box"), file=sys.stderr)
+              + (": the term is switched off" if off else
+                 ": the optimum may lie on or beyond the box's edge"), file=sys.stderr)
     for st in tuned.stages:
         if st.restart_spread > RESTART_TOLERANCE:
             print(f"fuzzyservo: warning: the {setup.restarts} searches of stage {st.name} "

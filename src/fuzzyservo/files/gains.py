@@ -180,7 +180,7 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
             constraints=constraints, seed=rd.get(tu, "seed", int, w),
             popsize=rd.get(tu, "popsize", int, w), maxiter=rd.get(tu, "maxiter", int, w),
             pid_n=rd.get(tu, "pid_n", float, w), polish=rd.get(tu, "polish", bool, w),
-            bounds=bounds, **({} if layout == 1 else {
+            bounds=bounds, **({"restarts": 1} if layout == 1 else {
                 "patience": rd.get(tu, "patience", int, w),
                 "rtol": rd.get(tu, "rtol", float, w),
                 "spread": rd.get(tu, "spread", float, w),
