@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed-stamp
 FLVENV := .venv-fuzzylite
 PIP_QUIET := $(if $(CI),-q,)
 
-.PHONY: all reproduce test test-fast lint bench clean clean-numba
+.PHONY: all reproduce test test-fast lint bench clean clean-numba oracles crosscheck
 
 all: test
 
@@ -24,6 +24,14 @@ $(FLVENV)/.installed-stamp:
 	$(FLVENV)/bin/python -m pip install $(PIP_QUIET) 'pyfuzzylite>=8' 'numpy<2'
 	touch $@
 
+# Independent readers the tests compare with: fuzzylite's CLI (Debian package, about 1 MB).
+# Installed when missing (root, or sudo); the tests that need it fail, never skip, without it.
+APT_INSTALL = DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -q --no-install-recommends
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+oracles:
+	@command -v fuzzylite >/dev/null 2>&1 || $(APT_INSTALL) fuzzylite \
+	  || { $(SUDO) apt-get update -q && $(APT_INSTALL) fuzzylite; }
+
 reproduce: $(STAMP)
 	$(BIN)/fuzzyservo reproduce --out results/paper
 
@@ -31,12 +39,12 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/mypy src
 
-test: lint
+test: lint oracles
 	$(BIN)/python -m pytest -n 2 -q
 
 # the same without the tests marked slow (brute-force accuracy, the README's study and tuning
 # runs): a quick check while editing; CI and `make test` run everything
-test-fast: lint
+test-fast: lint oracles
 	$(BIN)/python -m pytest -n 2 -q -m "not slow"
 
 bench: $(STAMP) $(FLVENV)/.installed-stamp

@@ -11,14 +11,15 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "fuzzyservo"
 ALLOWED: dict[str, set[str]] = {
     "fuzzy": set(),
     "plant": set(),
+    "formats": {"fuzzy"},
     "control": {"fuzzy"},
     "sim": {"control", "plant", "fuzzy"},
     "paper": {"fuzzy", "plant", "control"},
-    "registry": {"fuzzy", "plant", "control", "sim", "paper"},
-    "analysis": {"registry", "sim", "control", "plant", "fuzzy"},
-    "files": {"analysis", "registry", "sim", "control", "plant", "fuzzy"},
-    "plots": {"analysis", "sim", "control", "plant", "fuzzy", "paper"},
-    "study": {"fuzzy", "plant", "control", "sim", "paper", "registry", "analysis", "files",
+    "registry": {"fuzzy", "formats", "plant", "control", "sim", "paper"},
+    "analysis": {"registry", "sim", "control", "plant", "fuzzy", "formats"},
+    "files": {"analysis", "registry", "sim", "control", "plant", "fuzzy", "formats"},
+    "plots": {"analysis", "sim", "control", "plant", "fuzzy", "formats", "paper"},
+    "study": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis", "files",
               "plots"},
 }
 ALWAYS = {"errors", "_typing", "_io"}

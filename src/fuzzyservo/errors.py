@@ -10,6 +10,7 @@ from __future__ import annotations
 
 __all__ = [
     "EmptyFuzzySetError",
+    "FormatError",
     "FuzzyServoError",
     "InputError",
     "OutputError",
@@ -28,6 +29,12 @@ class ParameterError(FuzzyServoError, ValueError):
 
 class InputError(FuzzyServoError, ValueError):
     """A signal, file or command-line value is malformed (NaN, missing column, ...)."""
+
+
+class FormatError(InputError):
+    """A fuzzy-system file is malformed or uses a feature fuzzyservo does not support; the
+    message starts with ``file:line:column:`` and says what was expected or what is not
+    supported."""
 
 
 class OutputError(FuzzyServoError, OSError):
