@@ -1,0 +1,81 @@
+"""Shared helpers of the file readers: locations and one-line errors."""
+
+from __future__ import annotations
+
+import math
+
+from ..errors import FormatError
+
+__all__ = ["Source", "fmt_float", "parse_float"]
+
+
+class Source:
+    """A file's text with its name, turning character offsets into ``file:line:col`` errors.
+
+    Parameters
+    ----------
+    text : str
+        The whole file (a leading byte-order mark is dropped; CRLF and CR line ends are read
+        as LF, so columns count characters of the line without its end).
+    name : str
+        The file name shown in messages.
+    """
+
+    def __init__(self, text: str, name: str) -> None:
+        if text.startswith("\ufeff"):
+            text = text[1:]
+        self.text = text.replace("\r\n", "\n").replace("\r", "\n")
+        self.name = name
+        self._starts = [0]
+        for i, ch in enumerate(self.text):
+            if ch == "\n":
+                self._starts.append(i + 1)
+
+    def where(self, offset: int) -> tuple[int, int]:
+        """(line, column), both from 1, of a character offset."""
+        import bisect
+
+        offset = max(0, min(offset, len(self.text)))
+        line = bisect.bisect_right(self._starts, offset) - 1
+        return line + 1, offset - self._starts[line] + 1
+
+    def error(self, offset: int, message: str) -> FormatError:
+        """A FormatError ``name:line:col: message`` (message kept on one line)."""
+        line, col = self.where(offset)
+        one = " ".join(message.split())
+        return FormatError(f"{self.name}:{line}:{col}: {one}")
+
+    def error_at(self, line: int, col: int, message: str) -> FormatError:
+        """A FormatError at a known line and column (both from 1)."""
+        one = " ".join(message.split())
+        return FormatError(f"{self.name}:{line}:{col}: {one}")
+
+
+def parse_float(token: str) -> float | None:
+    """A decimal number (also ``inf``, ``-inf``, ``Inf``, ``nan``, case-insensitive), or None.
+
+    Never evaluates anything: only ``float()`` of a token of digits, signs, ``.``, ``e`` and
+    the words inf / infinity / nan is tried.
+    """
+    t = token.strip()
+    if not t or len(t) > 400:
+        return None
+    low = t.lower().lstrip("+-")
+    if low not in ("inf", "infinity", "nan") and not all(c in "0123456789.eE+-" for c in t):
+        return None
+    try:
+        return float(t)
+    except ValueError:
+        return None
+
+
+def fmt_float(x: float) -> str:
+    """The shortest text that reads back to exactly ``x`` (``repr``), inf as ``inf``/``-inf``,
+    NaN as ``nan``; integers without a trailing ``.0``."""
+    if math.isnan(x):
+        return "nan"
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    if x == int(x) and abs(x) < 1e15:
+        return str(int(x)) if x != 0 or math.copysign(1.0, x) > 0 else "-0.0"
+    return repr(x)
