@@ -28,6 +28,7 @@ import numpy as np
 
 from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
+from ..fuzzy.general import MAGIC, eval_first2
 from ..fuzzy.kernels import eval_uniform_grid, eval_uniform_pair
 
 __all__ = [
@@ -46,6 +47,17 @@ _KE, _KDE, _KDU, _UMIN, _UMAX, _DESCALE, _EINIT, _FILT, _ST = range(9)
 _NP = 9
 # packed state layout
 _UPREV, _EPREV, _YF, _STARTED, _ALPHA = range(5)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def eval_system(x1: float, x2: float, rules: IntArray, lims: FloatArray) -> float:
+    """A fuzzy system in kernel form at (x1, x2): the uniform-grid fast path for a rule table
+    (rules (n2, n1), lims (8,)), the general evaluator for a packed system (rules (1, N), the
+    packed integers; lims the packed floats: :meth:`fuzzyservo.fuzzy.general.CompiledSystem.
+    kernel_args`)."""
+    if rules.shape[0] == 1:
+        return eval_first2(x1, x2, rules[0], lims)
+    return eval_uniform_grid(x1, x2, rules, lims)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -78,9 +90,13 @@ def fuzzy_pi_step(
     en = p[_KE] * e
     den = p[_KDE] * de
     if p[_ST] == 1.0:
-        dun, alpha = eval_uniform_pair(en, den, du_rules, du_lims, a_rules, a_lims)
+        if du_rules.shape[0] == 1 or a_rules.shape[0] == 1:
+            dun = eval_system(en, den, du_rules, du_lims)
+            alpha = eval_system(en, den, a_rules, a_lims)
+        else:
+            dun, alpha = eval_uniform_pair(en, den, du_rules, du_lims, a_rules, a_lims)
     else:
-        dun = eval_uniform_grid(en, den, du_rules, du_lims)
+        dun = eval_system(en, den, du_rules, du_lims)
         alpha = 1.0
     u = s[_UPREV] + alpha * p[_KDU] * dun
     u = min(max(u, p[_UMIN]), p[_UMAX])
@@ -92,10 +108,12 @@ def fuzzy_pi_step(
 
 
 class KernelSystem(Protocol):
-    """A Mamdani system of the uniform-grid form (``fuzzyservo.fuzzy``, ``fuzzyservo.paper``)."""
+    """A two-input fuzzy system the compiled loops can evaluate: a
+    :class:`~fuzzyservo.fuzzy.MamdaniSystem` (``fuzzyservo.paper``'s) or a compiled
+    :class:`~fuzzyservo.fuzzy.system.FuzzySystem` (e.g. read from a file)."""
 
-    def uniform_kernel_args(self) -> tuple[Any, Any]:
-        """Return ``(rules, lims)`` for ``eval_uniform_grid``."""
+    def kernel_args(self) -> tuple[Any, Any]:
+        """Return ``(rules, lims)`` for :func:`eval_system`."""
         ...
 
 
@@ -113,6 +131,11 @@ class FuzzyPIState:
 def _tables(rules: Any, lims: Any, what: str) -> tuple[IntArray, FloatArray]:
     r = np.ascontiguousarray(rules, dtype=np.int64)
     m = np.ascontiguousarray(lims, dtype=np.float64)
+    if r.ndim == 2 and r.shape[0] == 1:
+        if r.shape[1] < 2 or r[0, 0] != MAGIC or r[0, 1] != 2 or m.ndim != 1:
+            raise ParameterError(f"{what}: a packed fuzzy system for a loop needs two inputs "
+                                 f"(e, de) (fuzzyservo.fuzzy.general.compile_system)")
+        return r, m
     if r.ndim != 2 or min(r.shape) < 2 or m.shape != (8,) or not np.all(np.isfinite(m[:7])):
         raise ParameterError(
             f"{what} tables need rules (n2, n1 >= 2) and 8 lims (first 7 finite), "
@@ -207,11 +230,12 @@ class FuzzyPIController:
     @classmethod
     def from_systems(cls, du_system: KernelSystem, alpha_system: KernelSystem | None = None,
                      **options: Any) -> Self:
-        """Build from Mamdani systems of uniform-grid form, e.g. ``fuzzyservo.paper``'s
-        ``du_system()`` and ``alpha_system()``; ``options`` are the other fields."""
-        du_rules, du_lims = du_system.uniform_kernel_args()
+        """Build from two-input fuzzy systems (:class:`KernelSystem`): ``fuzzyservo.paper``'s
+        ``du_system()`` and ``alpha_system()`` (the uniform-grid fast path), or systems read
+        from files and compiled (the general evaluator); ``options`` are the other fields."""
+        du_rules, du_lims = du_system.kernel_args()
         if alpha_system is not None:
-            a_rules, a_lims = alpha_system.uniform_kernel_args()
+            a_rules, a_lims = alpha_system.kernel_args()
             options = {**options, "alpha_rules": a_rules, "alpha_lims": a_lims}
         return cls(du_rules=du_rules, du_lims=du_lims, **options)
 

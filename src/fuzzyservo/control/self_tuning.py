@@ -34,7 +34,7 @@ class SelfTuningFuzzyPIController(FuzzyPIController):
 
     def __post_init__(self) -> None:
         FuzzyPIController.__post_init__(self)
-        if np.all(self.alpha_rules < 0):
+        if self.alpha_rules.shape[0] != 1 and np.all(self.alpha_rules < 0):
             raise ParameterError(
                 "the self-tuning fuzzy PI needs the alpha rule base (alpha_rules/alpha_lims, "
                 "e.g. from fuzzyservo.paper.alpha_system()); got none")

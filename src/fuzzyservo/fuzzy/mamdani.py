@@ -158,6 +158,17 @@ class MamdaniSystem:
         lims[7] = np.nan if s.default is None else s.default
         return table, lims
 
+    def kernel_args(self) -> tuple[IntArray, FloatArray]:
+        """``(rules, lims)`` for the controllers' compiled loops: the uniform-grid tables when
+        the system has that form (:meth:`uniform_kernel_args`), else the system packed for the
+        general evaluator (:func:`fuzzyservo.fuzzy.general.compile_system`)."""
+        if self._c.uniform is not None:
+            return self.uniform_kernel_args()
+        from .loop import loop_system
+        from .system import from_mamdani
+
+        return loop_system(from_mamdani(self), source="MamdaniSystem").kernel_args()
+
     def uniform_kernel_args(self) -> tuple[IntArray, FloatArray]:
         """``(rules, lims)`` for :func:`fuzzyservo.fuzzy.kernels.eval_uniform_grid`.
 
