@@ -14,13 +14,13 @@ ALLOWED: dict[str, set[str]] = {
     "formats": {"fuzzy"},
     "control": {"fuzzy"},
     "sim": {"control", "plant", "fuzzy"},
-    "paper": {"fuzzy", "plant", "control"},
+    "paper": {"fuzzy", "formats", "plant", "control"},
     "registry": {"fuzzy", "formats", "plant", "control", "sim", "paper"},
     "analysis": {"registry", "sim", "control", "plant", "fuzzy", "formats"},
     "files": {"analysis", "registry", "sim", "control", "plant", "fuzzy", "formats"},
     "plots": {"analysis", "sim", "control", "plant", "fuzzy", "formats", "paper"},
-    "study": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis", "files",
-              "plots"},
+    "study": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis",
+              "files", "plots"},
 }
 ALWAYS = {"errors", "_typing", "_io"}
 

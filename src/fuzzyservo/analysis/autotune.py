@@ -166,6 +166,10 @@ class TuningSetup:
         Finish each search stage with a bounded Nelder-Mead polish (serial runs).
     bounds : GainBounds or None
         Search box; None uses :func:`default_bounds`.
+    systems : tuple of (str, str, str)
+        Fuzzy systems read from files, as (role, source, SHA-256 of the system's values)
+        (recorded; the caller passes the systems themselves to :func:`tune_controller`);
+        empty: the paper's.
     """
 
     controller: str
@@ -189,9 +193,15 @@ class TuningSetup:
     pid_n: float = 100.0
     polish: bool = True
     bounds: GainBounds | None = None
+    systems: tuple[tuple[str, str, str], ...] = ()
 
     def __post_init__(self) -> None:
         kind = controller_kind(self.controller)
+        for item in self.systems:
+            if len(item) != 3 or item[0] not in kind.systems:
+                raise ParameterError(f"systems entries are (role, source, sha256) with a role "
+                                     f"of {self.controller} ({', '.join(kind.systems) or 'none'})"
+                                     f", got {item!r}")
         plant_kind(self.plant)
         if not kind.searched:
             raise ParameterError(f"controller {self.controller} has no gain to search")
@@ -272,7 +282,8 @@ def setup_record(setup: TuningSetup) -> dict[str, Any]:
         "polish": setup.polish, "constraints": cons,
         "bounds": {n: [lo, hi, lg, zr] for n, lo, hi, lg, zr in
                    zip(b.names, b.lower, b.upper, b.log_scale, b.zero, strict=True)},
-    }
+    } | ({"systems": {role: {"source": src, "sha256": digest}
+                      for role, src, digest in setup.systems}} if setup.systems else {})
 
 
 #: The command-line option of each setting, for the message refusing a resume.
@@ -282,7 +293,8 @@ _OPTION = {"controller": "--controller", "plant": "--plant", "param_set": "--set
            "objective": "--objective", "seed": "--seed", "popsize": "--popsize",
            "maxiter": "--maxiter", "constraints": "--max-overshoot/--max-sse/--max-u",
            "polish": "--no-polish", "patience": "--patience", "rtol": "--rtol",
-           "spread": "--spread", "restarts": "--restarts"}
+           "spread": "--spread", "restarts": "--restarts",
+           "systems": "--du-system/--alpha-system"}
 
 
 def params_digest(params: ServoParams) -> str:
@@ -677,6 +689,11 @@ def _check_resume(resume: Checkpoint, setup: TuningSetup, params: ServoParams,
                   bounds: GainBounds) -> None:
     """Refuse a checkpoint of any other setting, parameters or version, naming the first."""
     mine = setup_record(setup)
+    if "systems" in resume.setup and "systems" not in mine:
+        raise ParameterError(f"the checkpoint was made with fuzzy systems from files "
+                             f"({_show(resume.setup['systems'])}), this run has the paper's: "
+                             f"resume with the same --du-system/--alpha-system, or run without "
+                             f"--resume")
     for key, value in mine.items():
         theirs = resume.setup.get(key, "(not recorded)")
         if theirs != value:

@@ -23,12 +23,15 @@ __all__ = [
     "OPTION_FLAGS",
     "ControllerChoice",
     "add_controller_arguments",
+    "add_system_arguments",
     "add_delay_argument",
     "add_plant_choice",
     "controller_from_args",
     "delay_from_args",
     "parse_gains_pairs",
     "simulated_time_progress",
+    "systems_from_args",
+    "systems_record",
 ]
 
 #: Controller options on the command line -> keyword of the controller classes.
@@ -142,6 +145,74 @@ def add_controller_arguments(parser: argparse.ArgumentParser | Any) -> None:
                         help="fuzzy PIs: Δe per sample or per second (default sample)")
     parser.add_argument("--filter-time", type=float, default=None, metavar="S",
                         help="fuzzy PIs: measurement filter time constant [s] (default 0)")
+    add_system_arguments(parser)
+
+
+def add_system_arguments(parser: argparse.ArgumentParser | Any) -> None:
+    """``--du-system FILE``, ``--alpha-system FILE`` and ``--no-rule-value V``."""
+    parser.add_argument("--du-system", type=Path, default=None, metavar="FILE",
+                        help="fuzzy PIs: the Δu system from a .fis, .fcl or .fll file in place "
+                             "of the paper's Fig. 3a: two inputs (e, Δe) evaluated at (K_e e, "
+                             "K_Δe Δe) in the file's own universes, its first output scaled "
+                             "by K_Δu (docs/fuzzy-files.md, 'In the loop')")
+    parser.add_argument("--alpha-system", type=Path, default=None, metavar="FILE",
+                        help="self-tuning fuzzy PI: the α system from a file in place of the "
+                             "paper's Fig. 3b (same inputs; its first output is α)")
+    parser.add_argument("--no-rule-value", type=float, default=None, metavar="V",
+                        help="value of a system from a file when no rule fires, where the "
+                             "file gives none (NaN default); needed unless its rules provably "
+                             "cover every (e, Δe)")
+
+
+def systems_from_args(args: argparse.Namespace, kind: str) -> dict[str, Any] | None:
+    """The fuzzy systems of ``--du-system`` / ``--alpha-system`` for controller ``kind``
+    (the paper's for a role not given), or None when neither is given.
+
+    Raises
+    ------
+    ParameterError, InputError, FormatError
+        A system option for a controller without that system, an unreadable or malformed
+        file, a system that is not two-input or has no value when no rule fires.
+    """
+    from ..formats import read_system
+    from ..fuzzy.loop import loop_system
+    from ..registry import default_systems
+
+    given = {role: getattr(args, f"{role}_system", None) for role in ("du", "alpha")}
+    if all(v is None for v in given.values()):
+        if getattr(args, "no_rule_value", None) is not None:
+            raise ParameterError("--no-rule-value applies to a system from a file: add "
+                                 "--du-system or --alpha-system")
+        return None
+    needs = controller_kind(kind).systems
+    out: dict[str, Any] = {}
+    for role, path in given.items():
+        if path is None:
+            continue
+        if role not in needs:
+            users = [n for n in controller_names() if role in controller_kind(n).systems]
+            raise ParameterError(f"--{role}-system applies to controller "
+                                 f"{' or '.join(users)}, not {kind}")
+        system = read_system(path)
+        out[role] = loop_system(system, source=str(path),
+                                no_rule_value=getattr(args, "no_rule_value", None))
+    for role, default in default_systems(tuple(r for r in needs if r not in out)).items():
+        out[role] = default
+    return out
+
+
+def systems_record(systems: dict[str, Any] | None) -> tuple[tuple[str, str, str], ...]:
+    """(role, source, sha256) of the systems read from files, for records and cache keys; a
+    file that holds the paper's system itself (e.g. the shipped ``paper-du.fis``) is the
+    paper's and is not recorded."""
+    from ..fuzzy.loop import LoopSystem, system_digest
+    from ..paper import paper_fuzzy_system
+
+    if not systems:
+        return ()
+    return tuple((role, s.source, s.digest) for role, s in sorted(systems.items())
+                 if isinstance(s, LoopSystem)
+                 and s.digest != system_digest(paper_fuzzy_system(role)))
 
 
 def parse_gains_pairs(text: str) -> dict[str, float]:
@@ -177,6 +248,7 @@ class ControllerChoice:
         self.gains = gains  #: every gain of the kind, checked [SI]
         self.ts = ts  #: sample time [s]
         self.source = source  #: the gains file, if one was read
+        self.systems: dict[str, Any] | None = None  #: fuzzy systems from files (after build)
 
     @property
     def tuned(self) -> TunedGains | None:
@@ -195,7 +267,8 @@ class ControllerChoice:
                 raise ParameterError(f"{flag} does not apply to controller {self.kind} "
                                      f"({kind.title})")
             options[key] = value
-        return kind.build(self.gains, dt=self.ts, options=options)
+        self.systems = systems_from_args(args, self.kind)
+        return kind.build(self.gains, dt=self.ts, options=options, systems=self.systems)
 
 
 def controller_from_args(args: argparse.Namespace, *, default_ts: float = 1e-3

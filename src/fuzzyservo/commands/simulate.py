@@ -37,12 +37,14 @@ from ..sim import parse_reference, simulate, simulate_open_loop
 from ..sim.open_loop import MAX_RHS_EVALUATIONS
 from ._plantargs import add_plant_arguments, params_from_args, params_given
 from ._runargs import (
+    ControllerChoice,
     add_controller_arguments,
     add_delay_argument,
     add_plant_choice,
     controller_from_args,
     delay_from_args,
     simulated_time_progress,
+    systems_record,
 )
 from .metrics import print_metrics
 
@@ -145,6 +147,30 @@ def _check_outputs(args: argparse.Namespace) -> None:
                              f"names")
 
 
+def _system_notes(choice: ControllerChoice) -> list[str]:
+    """The scaling of each fuzzy system read from a file, and a gains file's systems that are
+    not the ones of this run."""
+    from ..fuzzy.loop import LoopSystem
+
+    systems = sorted((choice.systems or {}).items())
+    notes = [f"{role} system {s.describe(role)}" for role, s in systems
+             if isinstance(s, LoopSystem)]
+    tuned = choice.tuned
+    if tuned is not None:
+        then = {role: (src, d) for role, src, d in tuned.setup.systems}
+        now = {role: (src, d) for role, src, d in systems_record(choice.systems)}
+        for role in sorted(set(then) | set(now)):
+            if then.get(role, (None, None))[1] != now.get(role, (None, None))[1]:
+                was = f"{role} system {then[role][0]}" if role in then else \
+                    f"the paper's {role} system"
+                is_ = f"{role} system {now[role][0]}" if role in now else \
+                    f"the paper's {role} system"
+                notes.append(f"the gains were tuned with {was}; this run uses {is_}"
+                             + (f" (pass --{role}-system {then[role][0]})"
+                                if role in then and role not in now else ""))
+    return notes
+
+
 def _write(result: Any, out: str | None) -> None:
     if out is None:
         return
@@ -236,7 +262,11 @@ def run(args: argparse.Namespace) -> int:
     _check_outputs(args)
     if not (math.isfinite(args.substep) and args.substep > 0.0):
         raise ParameterError(f"--substep must be finite and > 0 s, got {args.substep!r}")
+    extra_notes: list[str] = []
     if args.open_loop:
+        if args.du_system is not None or args.alpha_system is not None:
+            raise InputError("--du-system/--alpha-system belong to a fuzzy controller; the open "
+                             "loop has none")
         if args.controller is not None or args.gains is not None:
             raise InputError("--open-loop applies --command, not a controller: drop "
                              "--controller/--gains or --open-loop")
@@ -268,6 +298,7 @@ def run(args: argparse.Namespace) -> int:
         choice = controller_from_args(args)
         ctl = choice.build(args)
         run_ = _settings(args, choice.tuned, choice.ts, str(args.gains))
+        extra_notes = _system_notes(choice)
         reference = parse_reference(run_.reference)
         if args.seed < 0:
             raise ParameterError(f"--seed must be a non-negative integer, got {args.seed}")
@@ -276,7 +307,7 @@ def run(args: argparse.Namespace) -> int:
         result = simulate(ctl, plant, reference, duration=run_.duration, delay=run_.delay,
                           noise_std=args.noise_std, rng=np.random.default_rng(args.seed))
         title = f"{choice.kind} on the {run_.plant} plant, reference {run_.reference}"
-    for note in run_.notes:
+    for note in (*run_.notes, *extra_notes):
         print(f"fuzzyservo: note: {note}", file=sys.stderr)
     _write(result, args.out)
     if args.metrics:

@@ -48,7 +48,14 @@ from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gai
 from ..plant import ServoParams
 from ..registry import controller_names
 from ._plantargs import add_plant_arguments, overrides_from_args, params_from_args, set_name
-from ._runargs import add_delay_argument, add_plant_choice, delay_from_args
+from ._runargs import (
+    add_delay_argument,
+    add_plant_choice,
+    add_system_arguments,
+    delay_from_args,
+    systems_from_args,
+    systems_record,
+)
 
 __all__ = ["register", "run"]
 
@@ -113,11 +120,13 @@ def register(subparsers: Any) -> None:
     p.add_argument("--no-polish", dest="polish", action="store_false",
                    help="skip the Nelder-Mead polish after each search stage")
     p.add_argument("--quiet", action="store_true", help="no progress output")
+    add_system_arguments(p)
     add_plant_arguments(p)
     p.set_defaults(handler=run)
 
 
-def _setup(args: argparse.Namespace, params: ServoParams) -> TuningSetup:
+def _setup(args: argparse.Namespace, params: ServoParams,
+           systems: dict[str, Any] | None = None) -> TuningSetup:
     for name, value in (("--max-overshoot", args.max_overshoot), ("--max-sse", args.max_sse),
                         ("--max-u", args.max_u)):
         if value is not None and not (math.isfinite(value) and value >= 0.0):
@@ -133,7 +142,8 @@ def _setup(args: argparse.Namespace, params: ServoParams) -> TuningSetup:
                                       max_steady_state_error=args.max_sse / 100.0,
                                       max_u=args.max_u),
         seed=args.seed, popsize=args.popsize, maxiter=args.maxiter, patience=args.patience,
-        rtol=args.rtol, spread=args.spread, restarts=args.restarts, polish=args.polish)
+        rtol=args.rtol, spread=args.spread, restarts=args.restarts, polish=args.polish,
+        systems=systems_record(systems))
 
 
 class _Progress:
@@ -181,13 +191,15 @@ def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo tune``."""
     out: Path = check_output_path(args.out, option="--out", inputs=(args.param_file,))
     params = params_from_args(args)
-    setup = _setup(args, params)
+    systems = systems_from_args(args, args.controller)
+    setup = _setup(args, params, systems)
     ckpt_file = checkpoint_path(out)
     resume = load_checkpoint(ckpt_file) if args.resume else None
     progress = _Progress(setup, args.quiet)
     try:
         try:
-            tuned = tune_controller(setup, params, progress=progress, resume=resume)
+            tuned = tune_controller(setup, params, progress=progress, resume=resume,
+                                    systems=systems)
         except ParameterError as exc:
             if resume is not None and str(exc).startswith("the checkpoint"):
                 raise ParameterError(f"{str(ckpt_file)!r}: {exc}") from None

@@ -169,6 +169,14 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
                                 upper=tuple(float(r[1]) for r in rows),
                                 log_scale=tuple(bool(r[2]) for r in rows),
                                 zero=tuple(bool(r[3]) for r in rows))
+        systems = []
+        for role, entry in (rd.get(tu, "systems", dict, w) if "systems" in tu else {}).items():
+            sw = f"tuning.systems.{role}."
+            if not isinstance(entry, dict):
+                raise InputError(f"{str(path)!r}: tuning.systems.{role} must be a table with "
+                                 f"source and sha256")
+            systems.append((str(role), rd.get(entry, "source", str, sw),
+                            rd.get(entry, "sha256", str, sw)))
         setup = TuningSetup(
             controller=controller, plant=rd.get(tu, "plant", str, w),
             param_set=rd.get(tu, "param_set", str, w),
@@ -180,7 +188,7 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
             constraints=constraints, seed=rd.get(tu, "seed", int, w),
             popsize=rd.get(tu, "popsize", int, w), maxiter=rd.get(tu, "maxiter", int, w),
             pid_n=rd.get(tu, "pid_n", float, w), polish=rd.get(tu, "polish", bool, w),
-            bounds=bounds, **({"restarts": 1} if layout == 1 else {
+            bounds=bounds, systems=tuple(systems), **({"restarts": 1} if layout == 1 else {
                 "patience": rd.get(tu, "patience", int, w),
                 "rtol": rd.get(tu, "rtol", float, w),
                 "spread": rd.get(tu, "spread", float, w),

@@ -129,13 +129,16 @@ class LoopSystem:
         """``(ints[None, :], floats)``: the general evaluator's arrays in the kernels' slots."""
         return self.compiled.ints.reshape(1, -1).copy(), self.compiled.floats.copy()
 
-    def describe(self) -> str:
-        """One line: the inputs' and the output's universes (the scaling the gains apply)."""
+    def describe(self, role: str = "du") -> str:
+        """One line: the inputs' and the output's universes and the gains that scale them
+        (``role`` "du": the output times K_Δu is the command increment; "alpha": the output
+        multiplies K_Δu)."""
         s = self.system
         (e, de), out = s.inputs, s.outputs[0]
+        use = "x K_du = command increment" if role == "du" else "= alpha, multiplies K_du"
         return (f"{self.source}: {e.name} in [{e.range[0]:g}, {e.range[1]:g}] = K_e e, "
                 f"{de.name} in [{de.range[0]:g}, {de.range[1]:g}] = K_de de, "
-                f"{out.name} in [{out.range[0]:g}, {out.range[1]:g}] (x K_du)")
+                f"{out.name} in [{out.range[0]:g}, {out.range[1]:g}] ({use})")
 
 
 def loop_system(system: FuzzySystem, *, source: str = "<system>",

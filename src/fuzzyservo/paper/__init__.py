@@ -12,17 +12,28 @@ from .published import (
     paper_params,
     stiff_oil_params,
 )
-from .rulebases import alpha_system, du_system
+from .rulebases import (
+    SYSTEM_FILES,
+    alpha_system,
+    du_system,
+    paper_fuzzy_system,
+    system_file,
+    write_system_files,
+)
 
 __all__ = [
     "PAPER_PIDS",
     "PHYSICAL_CHOICES",
     "SET_NAMES",
+    "SYSTEM_FILES",
     "TABLE_A1",
     "PaperPID",
     "alpha_system",
     "du_system",
     "named_set",
+    "paper_fuzzy_system",
     "paper_params",
     "stiff_oil_params",
+    "system_file",
+    "write_system_files",
 ]

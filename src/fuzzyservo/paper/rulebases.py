@@ -9,9 +9,24 @@ universe ("MOR" and "COA" in the paper).
 
 from __future__ import annotations
 
-from ..fuzzy import LinguisticVariable, MamdaniSpec, MamdaniSystem, RuleBase
+from pathlib import Path
 
-__all__ = ["ALPHA_LABELS", "ALPHA_TABLE", "DU_TABLE", "LABELS", "alpha_system", "du_system"]
+from ..errors import ParameterError
+from ..fuzzy import LinguisticVariable, MamdaniSpec, MamdaniSystem, RuleBase
+from ..fuzzy.system import FuzzySystem, from_mamdani
+
+__all__ = [
+    "ALPHA_LABELS",
+    "ALPHA_TABLE",
+    "DU_TABLE",
+    "LABELS",
+    "SYSTEM_FILES",
+    "alpha_system",
+    "du_system",
+    "paper_fuzzy_system",
+    "system_file",
+    "write_system_files",
+]
 
 #: Labels of e, Δe and Δu, from negative big to positive big.
 LABELS: tuple[str, ...] = ("NB", "NM", "NS", "ZO", "PS", "PM", "PB")
@@ -73,3 +88,52 @@ def alpha_system() -> MamdaniSystem:
     alpha = LinguisticVariable.uniform("alpha", (0.0, 1.0), ALPHA_LABELS)
     rules = RuleBase.from_table(ALPHA_TABLE, columns=e, rows=de, output=alpha)
     return MamdaniSystem(rules=rules, spec=MamdaniSpec())
+
+
+#: File names of the paper's systems shipped in ``fuzzyservo/data/systems`` (one per format).
+SYSTEM_FILES: tuple[str, ...] = tuple(f"paper-{role}.{ext}" for role in ("du", "alpha")
+                                      for ext in ("fis", "fcl", "fll"))
+
+
+def paper_fuzzy_system(role: str) -> FuzzySystem:
+    """The paper's ``"du"`` or ``"alpha"`` system as a general
+    :class:`~fuzzyservo.fuzzy.system.FuzzySystem` (what the shipped files hold).
+
+    The output's default (the value when no rule fires) is the middle of its range, MATLAB's
+    convention, so that one system is written unchanged to .fis, FCL and FLL; it is never used:
+    the complete rule table over inputs whose triangles cover [-1, 1] always fires.
+    """
+    import dataclasses
+
+    makers = {"du": du_system, "alpha": alpha_system}
+    if role not in makers:
+        raise ParameterError(f"role must be 'du' or 'alpha', got {role!r}")
+    s = from_mamdani(makers[role](), name=f"paper_{role}")
+    out = s.outputs[0]
+    mid = 0.5 * (out.range[0] + out.range[1])
+    return dataclasses.replace(s, outputs=(dataclasses.replace(out, default=mid),))
+
+
+def write_system_files(folder: str | Path) -> list[Path]:
+    """Write the paper's two systems in every format into ``folder`` (the package data is made
+    this way: ``python -c "from fuzzyservo.paper.rulebases import write_system_files;
+    write_system_files('src/fuzzyservo/data/systems')"``)."""
+    from ..formats import write_system
+
+    out = []
+    for name in SYSTEM_FILES:
+        role = name.split("-")[1].split(".")[0]
+        path = Path(folder) / name
+        write_system(paper_fuzzy_system(role), path)
+        out.append(path)
+    return out
+
+
+def system_file(role: str, fmt: str = "fll") -> Path:
+    """Path of a shipped file of the paper's ``role`` system in format ``fmt``."""
+    from importlib import resources
+
+    name = f"paper-{role}.{fmt}"
+    if name not in SYSTEM_FILES:
+        raise ParameterError(f"no shipped system {name!r}; shipped: {', '.join(SYSTEM_FILES)}")
+    return Path(str(resources.files("fuzzyservo") / "data" / "systems" / name))
