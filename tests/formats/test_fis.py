@@ -14,8 +14,10 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from fuzzyservo._typing import FloatArray
 from fuzzyservo.errors import FormatError, ParameterError
 from fuzzyservo.formats.fis import dump, parse
 from fuzzyservo.fuzzy.system import (
@@ -29,7 +31,7 @@ from fuzzyservo.fuzzy.system import (
     Term,
     Variable,
 )
-from tests.formats.fuzzylite_oracle import EXAMPLES, fuzzylite_translate
+from tests.formats.fuzzylite_oracle import EXAMPLES, fuzzylite_eval, fuzzylite_translate
 
 DATA = Path(__file__).parent / "data" / "fis"
 
@@ -576,3 +578,160 @@ def test_writer_refuses_what_fis_cannot_hold(case: str) -> None:
     with pytest.raises(ParameterError) as exc:
         dump(make())
     assert message in str(exc.value), str(exc.value)
+
+
+# ----------------------------------------------------------------------------- oracle
+#
+# fuzzylite 6 reads the same .fis text with its own reader and evaluates it; we compare with
+# the exact evaluator on parse(text). Where the two tools mean different things we do not
+# compare:
+# - maxima defuzzifiers (mom, som, lom): fuzzylite searches its samples for the maximum with a
+#   1e-6 tolerance and takes only the first plateau for mom; at ties between maxima (frequent:
+#   rules limited by the same clause fire equally, shoulders give exactly 1) it picks another
+#   maximiser, a jump of up to the whole range. Only centroid, bisector and Sugeno are compared.
+# - fuzzylite returns NaN when no rule fires, MATLAB (and so this reader) the middle of the
+#   range: where fuzzylite gives NaN we check that we give the middle.
+# - fuzzylite ignores rules whose strength is at most 1e-6: points where a rule fires that
+#   weakly are left out (at most a fifth of the points may be).
+# - fuzzylite does not clip inputs: every point lies inside the input ranges.
+
+#: Centroid resolution asked of fuzzylite.
+RESOLUTION = 1_000_000
+#: Mamdani bound, as a fraction of the output range: fuzzylite's bisector stops at the sample
+#: where the running area passes half, one sample (range / RESOLUTION) from the exact point;
+#: its centroid is a midpoint rule on RESOLUTION samples, off by O((range / RESOLUTION)^2)
+#: on continuous aggregates (the outputs compared have no vertical edge inside their range).
+#: Two samples' width covers both.
+MAMDANI_RTOL = 2.0 / RESOLUTION
+#: Sugeno bound: fuzzylite computes the same weighted average without sampling; rounding only.
+SUGENO_RTOL = 1e-12
+#: fuzzylite leaves out rules whose strength is at most this.
+FUZZYLITE_MIN_STRENGTH = 1e-6
+
+
+def _fuzzylite_fll(fis_text: str) -> str:
+    """fuzzylite's own translation of a .fis text to FLL with every digit kept.
+
+    ``fuzzylite_oracle.fuzzylite_translate`` lets fuzzylite write 3 decimals, which changes
+    a parameter such as -1.3333333333333333 by 3e-4; ``-decimals 17`` keeps them.
+    """
+    import subprocess
+    import tempfile
+
+    from tests.formats.fuzzylite_oracle import fuzzylite_binary
+
+    with tempfile.TemporaryDirectory() as d:
+        src, dst = Path(d) / "in.fis", Path(d) / "out.fll"
+        src.write_text(fis_text, encoding="utf-8")
+        proc = subprocess.run([fuzzylite_binary(), "-i", str(src), "-if", "fis", "-o",
+                               str(dst), "-of", "fll", "-decimals", "17"],
+                              capture_output=True, text=True, timeout=600, check=False)
+        assert proc.returncode == 0 and "error" not in proc.stderr.lower(), proc.stderr
+        return dst.read_text(encoding="utf-8")
+
+
+def _strengths(system: FuzzySystem, x: FloatArray) -> FloatArray:
+    """Rule strengths (weight included) at the points x (n, n_inputs), shape (n, n_rules)."""
+    from fuzzyservo.fuzzy.general import membership
+
+    def value(e: object) -> FloatArray:
+        if isinstance(e, Is):
+            t = system.inputs[e.variable].terms[e.term]
+            mu = membership(t.shape, t.params, x[:, e.variable], t.height)
+            return 1.0 - mu if e.negated else mu
+        if isinstance(e, Not):
+            return 1.0 - value(e.operand)
+        assert isinstance(e, And | Or)
+        vals = [value(op) for op in e.operands]
+        out = vals[0]
+        for v in vals[1:]:
+            if isinstance(e, And):
+                out = np.minimum(out, v) if system.and_op == "min" else out * v
+            else:
+                out = np.maximum(out, v) if system.or_op == "max" else out + v - out * v
+        return out
+
+    cols = [value(r.antecedent) * r.weight for r in system.rules]
+    return np.stack(cols, axis=1) if cols else np.zeros((len(x), 0))
+
+
+def _points(system: FuzzySystem, seed: int, n: int = 50) -> FloatArray:
+    """n random points inside the input ranges where no rule fires in (0, 1e-6]."""
+    rng = np.random.default_rng(seed)
+    lo = np.array([v.range[0] for v in system.inputs])
+    hi = np.array([v.range[1] for v in system.inputs])
+    x: FloatArray = lo + (hi - lo) * rng.random((n, len(system.inputs)))
+    w = _strengths(system, x)
+    weak = np.any((w > 0.0) & (w <= FUZZYLITE_MIN_STRENGTH), axis=1)
+    assert weak.sum() <= n // 5, f"{weak.sum()} of {n} points have a rule firing in (0, 1e-6]"
+    kept: FloatArray = x[~weak]
+    return kept
+
+
+def _compare_with_fuzzylite(fis_text: str, seed: int) -> tuple[float, int]:
+    """Largest |ours - fuzzylite| / range over the outputs and the number of values where
+    no rule fired; asserts the bounds above."""
+    from fuzzyservo.fuzzy.general import evaluate
+
+    system = parse(fis_text, "oracle.fis")
+    assert system.defuzzifier in ("centroid", "bisector", "wtaver", "wtsum")
+    x = _points(system, seed)
+    fll = _fuzzylite_fll(fis_text)
+    # fuzzylite drops characters its names do not allow ('Food-Quality' -> 'FoodQuality');
+    # the order of the variables is the file's in both tools
+    names = re.findall(r"^InputVariable: (\S+)$", fll, re.MULTILINE)
+    outs, theirs = fuzzylite_eval(fll, "fll", names, x, RESOLUTION)
+    assert len(outs) == len(system.outputs)
+    ours = evaluate(system, x)
+    rtol = MAMDANI_RTOL if system.kind == "mamdani" else SUGENO_RTOL
+    worst = 0.0
+    n_none = 0
+    for j, var in enumerate(system.outputs):
+        span = var.range[1] - var.range[0]
+        none = np.isnan(theirs[:, j])
+        assert np.all(ours[none, j] == var.default)  # no rule fired: MATLAB's middle
+        n_none += int(none.sum())
+        diff = np.abs(ours[~none, j] - theirs[~none, j]) / span
+        assert np.all(diff <= rtol), (var.name, diff.max())
+        worst = max(worst, float(diff.max(initial=0.0)))
+    return worst, n_none
+
+
+ORACLE_EXAMPLES = sorted(k for k, v in EXAMPLE_OUTCOMES.items() if v is None)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ORACLE_EXAMPLES)
+def test_installed_example_agrees_with_fuzzylite(name: str) -> None:
+    _compare_with_fuzzylite((EXAMPLES / name).read_text(encoding="utf-8"), seed=11)
+
+
+def _paper_systems() -> dict[str, FuzzySystem]:
+    """The paper's two rule bases, with MATLAB's no-rule default (the middle of the range)
+    in place of the paper's NaN, which .fis cannot hold."""
+    from fuzzyservo.fuzzy.system import from_mamdani
+    from fuzzyservo.paper import alpha_system, du_system
+
+    out = {}
+    for name, make in (("du", du_system), ("alpha", alpha_system)):
+        system = from_mamdani(make())
+        mid = [dataclasses.replace(v, default=(v.range[0] + v.range[1]) / 2)
+               for v in system.outputs]
+        out[name] = dataclasses.replace(system, outputs=tuple(mid))
+    return out
+
+
+WRITTEN = {**{f"round_trip:{k}": v for k, v in ROUND_TRIP.items()
+              if v.defuzzifier in ("centroid", "bisector", "wtaver", "wtsum")},
+           **{f"data:{k}": read(k) for k in ("all_mfs.fis", "old_style.fis", "sugeno.fis")},
+           # one rule, firing on x < 0 only: elsewhere fuzzylite gives NaN and we the middle
+           "gap": dataclasses.replace(read("old_style.fis"),
+                                      rules=read("old_style.fis").rules[:1])}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(WRITTEN) + ["paper:du", "paper:alpha"])
+def test_written_file_agrees_with_fuzzylite(name: str) -> None:
+    system = _paper_systems()[name[6:]] if name.startswith("paper:") else WRITTEN[name]
+    _, n_none = _compare_with_fuzzylite(dump(system), seed=12)
+    assert (n_none > 0) == (name == "gap")
