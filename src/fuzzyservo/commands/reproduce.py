@@ -23,6 +23,7 @@ from ..errors import InputError, OutputError, ParameterError
 from ..study.paper_study import StudyConfig
 from ..study.runner import PLANTS, reproduce
 from ._plantargs import add_plant_arguments, params_from_args, set_name
+from ._runargs import add_system_arguments, systems_from_args, systems_record
 
 __all__ = ["MIN_DURATION", "register", "run"]
 
@@ -55,6 +56,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--duration", type=float, default=20.0, metavar="S",
                         help="length of each run [s], at least 5 (default 20)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_system_arguments(parser)
     add_plant_arguments(parser)
     parser.set_defaults(handler=run)
 
@@ -66,7 +68,11 @@ def run(args: argparse.Namespace) -> int:
             f"--duration must be at least {MIN_DURATION:g} s so that the claims can be judged "
             f"on settled responses, got {args.duration!r}")
     params = params_from_args(args)
-    cfg = StudyConfig(params=params, set_name=set_name(args), duration=args.duration)
+    systems = systems_from_args(args, "stfpi")
+    record = systems_record(systems)
+    from_files = tuple((role, systems[role]) for role, _, _ in record) if systems else ()
+    cfg = StudyConfig(params=params, set_name=set_name(args), duration=args.duration,
+                      systems=from_files)
     plants = PLANTS if args.plant == "both" else (args.plant,)
     total = len(plants) * (3 + (4 if args.retune else 0)) + 2
     quiet = args.quiet
@@ -84,10 +90,18 @@ def run(args: argparse.Namespace) -> int:
                  str(args.gains_dir or "committed tuned gains (fuzzyservo/data/gains)"),
         "plants": ", ".join(plants),
     }
+    if from_files:
+        meta["fuzzy systems"] = "; ".join(
+            f"{role}: {s.source} (sha256 {s.digest[:12]})" for role, s in from_files)
 
     def warn(message: str) -> None:
         tqdm.write(f"fuzzyservo: warning: {message}", file=sys.stderr)
 
+    if from_files and not args.retune:
+        warn("the gains (" + ("committed" if args.gains_dir is None else str(args.gains_dir))
+             + ") were tuned with the paper's fuzzy systems, this study runs "
+             + ", ".join(f"{role} system {s.source}" for role, s in from_files)
+             + ": add --retune to tune for them")
     t0 = time.perf_counter()
     try:
         paths = reproduce(args.out, cfg, gains_dir=args.gains_dir, retune_gains=args.retune,

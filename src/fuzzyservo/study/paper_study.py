@@ -113,6 +113,10 @@ class StudyConfig:
         Delays of the sweep [s].
     pid_filter : float
         Derivative filter coefficient N of the paper's PIDs [1/s] (Simulink's default, 100).
+    systems : tuple of (str, LoopSystem)
+        Fuzzy systems from files by role (``du``, ``alpha``) in place of the paper's Fig. 3
+        for every fuzzy controller of the study (``reproduce --du-system``); empty: the
+        paper's.
     """
 
     params: ServoParams
@@ -126,8 +130,12 @@ class StudyConfig:
                                       0.1, 0.125, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.8,
                                       1.0)
     pid_filter: float = 100.0
+    systems: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
+        for role, _ in self.systems:
+            if role not in ("du", "alpha"):
+                raise ParameterError(f"StudyConfig.systems roles are du and alpha, got {role!r}")
         for name in ("step", "duration", "ts"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
@@ -137,6 +145,17 @@ class StudyConfig:
         if self.duration < 10 * self.ts:
             raise ParameterError(
                 f"StudyConfig.duration must cover at least 10 samples, got {self.duration!r} s")
+
+    def system_map(self) -> dict[str, Any] | None:
+        """The fuzzy systems by role for the registry (the paper's where not given), or None
+        for the paper's."""
+        if not self.systems:
+            return None
+        from ..registry import default_systems
+
+        given = dict(self.systems)
+        return {**default_systems(tuple(r for r in ("du", "alpha") if r not in given)),
+                **given}
 
     @property
     def fig8_delay(self) -> float:
@@ -203,9 +222,13 @@ def design_name(case: ControllerCase) -> str:
     return f"{structure} ({TUNED_AS[case.key]} with {' = '.join(zero)} = 0)"
 
 
-def build_controller(case: ControllerCase, ts: float) -> Any:
-    """The controller object of a case at sample time ``ts`` [s], from the registry."""
-    return registry_build_controller(case.kind, case.gains, dt=ts)
+def build_controller(case: ControllerCase, ts: float,
+                     systems: Mapping[str, Any] | None = None) -> Any:
+    """The controller object of a case at sample time ``ts`` [s], from the registry (fuzzy
+    systems by role: ``systems``, default the paper's)."""
+    kind = controller_kind(case.kind)
+    use = None if systems is None else {r: systems[r] for r in kind.systems}
+    return registry_build_controller(case.kind, case.gains, dt=ts, systems=use)
 
 
 def build_plant(kind: str, params: ServoParams) -> Plant:
@@ -298,7 +321,7 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
     runs: dict[str, SimResult] = {}
     metrics: dict[str, dict[str, float]] = {}
     for case in cases:
-        ctl = build_controller(case, cfg.ts)
+        ctl = build_controller(case, cfg.ts, cfg.system_map())
         runs[case.key] = simulate(ctl, plant, ref, duration=cfg.duration, delay=cfg.delay)
         metrics[case.key] = metrics_dict(runs[case.key], cfg.step)
         metrics[case.key].update(command_amplitude(runs[case.key].t, runs[case.key].u,
@@ -306,8 +329,8 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
     done(f"{kind}: nominal runs")
 
     st_case = next(c for c in cases if c.key == "stfpi")
-    delayed = simulate(build_controller(st_case, cfg.ts), plant, ref, duration=cfg.duration,
-                       delay=cfg.fig8_delay)
+    delayed = simulate(build_controller(st_case, cfg.ts, cfg.system_map()), plant, ref,
+                       duration=cfg.duration, delay=cfg.fig8_delay)
     delayed_metrics = metrics_dict(delayed, cfg.step)
     delayed_metrics.update(command_amplitude(delayed.t, delayed.u, after=after))
 
@@ -316,7 +339,7 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
     margins: dict[str, float] = {}
     failures: dict[str, list[float]] = {}
     for case in cases:
-        ctl = build_controller(case, cfg.ts)
+        ctl = build_controller(case, cfg.ts, cfg.system_map())
         b = simulate_batch(ctl, np.tile(_gain_row(case), (delays.size, 1)),
                            plant=plant, reference=ref, duration=cfg.duration, delay=delays)
         sweep[case.key] = {n: b.metric(n).copy() for n in ("overshoot", "settling_time",
@@ -335,7 +358,7 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
     var_metrics: dict[str, dict[str, dict[str, float]]] = {v: {} for v in var_params}
     var_runs: dict[str, SimResult] = {}
     for case in (cases if var_plants else ()):
-        ctl = build_controller(case, cfg.ts)
+        ctl = build_controller(case, cfg.ts, cfg.system_map())
         b = simulate_batch(ctl, np.tile(_gain_row(case), (len(var_plants), 1)),
                            plant=var_plants, reference=ref, duration=cfg.duration,
                            delay=cfg.delay)
@@ -345,7 +368,7 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
     for name, p in zip(var_params, var_plants, strict=True):
         if var_metrics[name]["stfpi"]["diverged"]:
             continue  # no trace to keep; the claim reads the batch's divergence flag
-        var_runs[name] = simulate(build_controller(st_case, cfg.ts), p, ref,
+        var_runs[name] = simulate(build_controller(st_case, cfg.ts, cfg.system_map()), p, ref,
                                   duration=cfg.duration, delay=cfg.delay)
     done(f"{kind}: changed plants")
 

@@ -100,33 +100,48 @@ def _gain_paths(plant: str, gains_dir: Path) -> list[Path]:
     return [Path(gains_dir) / f"{plant}-{name}.toml" for name in GAIN_FILES]
 
 
-def study_jobs(plant: str, set_name: str) -> list[tuple[str, TuningSetup]]:
+def study_jobs(plant: str, set_name: str,
+               systems: tuple[tuple[str, str, str], ...] = ()) -> list[tuple[str, TuningSetup]]:
     """The tunings behind the study's gain files of ``plant``: (file name, setup).
 
     PIDs (1-DOF, 2-DOF) and one self-tuning fuzzy PI are tuned like the paper's PID (ITAE,
     <= 10 % overshoot, no steady-state error); the self-tuning fuzzy PI of the figures is
     tuned for the behaviour the paper reports for it (no overshoot, read as
     <= NO_OVERSHOOT_PCT %), by the paper's steps 1-3 (step 1 gives the fuzzy PI's file).
-    Default tuner settings (converged searches), seed 0.
+    Default tuner settings (converged searches), seed 0. ``systems`` records fuzzy systems
+    from files, (role, source, sha256), for the fuzzy designs.
     """
     no_os = TuningConstraints(max_overshoot=NO_OVERSHOOT_PCT)
     return [
         ("pid", TuningSetup(controller="pid", plant=plant, param_set=set_name)),
         ("pid2", TuningSetup(controller="pid2", plant=plant, param_set=set_name)),
-        ("stfpi", TuningSetup(controller="stfpi", plant=plant, param_set=set_name)),
+        ("stfpi", TuningSetup(controller="stfpi", plant=plant, param_set=set_name,
+                              systems=systems)),
         ("stfpi-os0", TuningSetup(controller="stfpi", plant=plant, param_set=set_name,
-                                  constraints=no_os)),
+                                  constraints=no_os, systems=systems)),
     ]
 
 
 def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
-           progress: Callable[[str], None] | None = None) -> dict[str, TunedGains]:
+           progress: Callable[[str], None] | None = None,
+           systems: tuple[tuple[str, Any], ...] = ()) -> dict[str, TunedGains]:
     """Tune every design of the study on ``plant`` afresh (:func:`study_jobs`) and write
-    the gain files (the fuzzy PI's is step 1 of the self-tuning run)."""
+    the gain files (the fuzzy PI's is step 1 of the self-tuning run); ``systems``: fuzzy
+    systems from files by role (StudyConfig.systems)."""
     gains_dir.mkdir(parents=True, exist_ok=True)
     out: dict[str, TunedGains] = {}
-    for name, setup in study_jobs(plant, set_name):
-        tuned = tune_controller(setup, params)
+    record = tuple((role, s.source, s.digest) for role, s in systems)
+    full = None
+    if systems:
+        from ..registry import default_systems
+
+        given = dict(systems)
+        full = {**default_systems(tuple(r for r in ("du", "alpha") if r not in given)),
+                **given}
+    for name, setup in study_jobs(plant, set_name, record):
+        kind = controller_kind(setup.controller)
+        use = None if full is None or not kind.systems else {r: full[r] for r in kind.systems}
+        tuned = tune_controller(setup, params, systems=use)
         out[name] = tuned
         write_gains_toml(gains_dir / f"{plant}-{name}.toml", tuned)
         first = controller_kind(setup.controller).stage_kind
@@ -177,7 +192,11 @@ def _matplotlib_version() -> str:
 
 
 def _settings(cfg: StudyConfig) -> dict[str, Any]:
-    return {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg) if f.name != "params"}
+    out = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)
+           if f.name not in ("params", "systems")}
+    if cfg.systems:  # a system by its values' digest (absent: the paper's, as before)
+        out["systems"] = {role: s.digest for role, s in cfg.systems}
+    return out
 
 
 def _cache_key(plant: str, cfg: StudyConfig, gains: Mapping[str, str], version: str) -> str:
@@ -372,7 +391,8 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
     for plant in plants:
         if retune_gains:
             begin_writing()
-            tuned = retune(plant, cfg.params, cfg.set_name, out / "gains", progress=progress)
+            tuned = retune(plant, cfg.params, cfg.set_name, out / "gains", progress=progress,
+                           systems=cfg.systems)
             gains_used.update({str(p.relative_to(out)): p
                                for p in _gain_paths(plant, out / "gains")})
         else:
