@@ -43,6 +43,7 @@ COMMANDS: tuple[str, ...] = (
     "tune",
     "linearize",
     "surface",
+    "fis",
     "reproduce",
 )
 
