@@ -209,6 +209,11 @@ def test_operators(key: str, fll: str, field: str, value: str) -> None:
     assert getattr(s, field) == value
 
 
+def test_activation_none_is_general() -> None:
+    # fuzzylite 6 evaluates a rule block without activation method as General.
+    assert parse(with_lines(BASE, activation="none")) == parse(BASE)
+
+
 def test_default_lock_range_and_activation_absent() -> None:
     text = with_lines(BASE, default="0.125", lock_range="true")  # the first: input x
     text = text.replace("  activation: General\n", "")

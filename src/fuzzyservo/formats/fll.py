@@ -44,7 +44,8 @@ What is read (fuzzylite 6 semantics throughout):
   is the output's value when no rule fires (``nan`` allowed: fuzzylite's "no value").
 - Aggregation Maximum, BoundedSum, UnboundedSum, AlgebraicSum; conjunction Minimum,
   AlgebraicProduct; disjunction Maximum, AlgebraicSum; implication Minimum, AlgebraicProduct;
-  ``none`` where the system does not need the operator. Activation General (or absent).
+  ``none`` where the system does not need the operator. Activation General (``none`` or
+  absent: fuzzylite 6 then uses General).
 - Defuzzifiers Centroid, Bisector, MeanOfMaximum, SmallestOfMaximum, LargestOfMaximum (an
   optional resolution is read and ignored: fuzzyservo integrates exactly; a note says so) make a
   Mamdani system; WeightedAverage and WeightedSum (TakagiSugeno, Automatic with Constant/Linear
@@ -247,9 +248,8 @@ def _blocks(src: Source, lines: list[_Line]) -> list[_Block]:
         if ln.key in _BLOCKS:
             blocks.append(_Block(ln.key, ln))
             continue
-        if not blocks:
-            engine = _Block("Engine", _Line("Engine", ln.key_off, "", ln.key_off))
-            blocks.append(engine)
+        if not blocks:  # keys before any block: an unnamed engine's
+            blocks.append(_Block("Engine", _Line("Engine", ln.key_off, "", ln.key_off)))
         blk = blocks[-1]
         allowed = _KEYS[blk.kind]
         if ln.key not in allowed:
@@ -293,21 +293,20 @@ def _one_token(src: Source, ln: _Line) -> _Tok:
     return toks[0]
 
 
-def _named(src: Source, ln: _Line, table: dict[str, str], what: str,
-           none_ok: bool = True) -> str | None:
+def _named(src: Source, ln: _Line, table: dict[str, str], what: str) -> str | None:
     """The model name of an operator, None for ``none``; unsupported names are named."""
     tok = _one_token(src, ln)
-    if none_ok and tok.text == "none":
+    if tok.text == "none":
         return None
     if tok.text not in table:
-        options = ", ".join([*table, *(["none"] if none_ok else [])])
+        options = ", ".join([*table, "none"])
         raise src.error(tok.off, f"unsupported {what}: {tok.text} (supported: {options})")
     return table[tok.text]
 
 
 def _check_name(src: Source, off: int, what: str, name: str) -> None:
     try:
-        # The model's own check: a one-term variable of that name.
+        # The model's own rule for names, through a variable without terms.
         Variable(name, (0.0, 1.0), ())
     except ParameterError:
         raise src.error(off, f"{what} name {name!r} is not allowed: use a letter or _ then "
@@ -326,14 +325,8 @@ class _Var:
     range: tuple[float, float]
     clip: bool
     default: float = math.nan
-    defuzzifier: str | None = None
     defuzz_line: _Line | None = None
-    aggregation: str | None = None
     agg_line: _Line | None = None
-
-
-_REFUSED_CLASSES = ("Spike", "Cosine", "Concave", "Function", "Arc", "SemiEllipse",
-                    "Activated", "Aggregated")
 
 
 def _term(src: Source, ln: _Line) -> Term:
@@ -782,9 +775,9 @@ def parse(text: str, source: str = "<string>") -> FuzzySystem:
             if "implication" in f else None
         if "activation" in f:
             act = f["activation"].tokens()
-            if act and act[0].text != "General":
+            if act and act[0].text not in ("General", "none"):
                 raise src.error(act[0].off, f"unsupported activation: {act[0].text} "
-                                            f"(supported: General)")
+                                            f"(supported: General, none)")
             _one_token(src, f["activation"])
         if kind == "mamdani" and impl is None and blk.items:
             at = f["implication"].val_off if "implication" in f else blk.head.key_off
