@@ -679,6 +679,9 @@ def test_writer_refuses_what_fcl_cannot_hold() -> None:
          "FCL cannot hold term height 0.5 of output 'z' term 'neg'"),
         (with_ops(singleton_system(), defuzzifier="som"),
          "cannot hold LM over the singleton terms of output 'z'"),
+        (with_ops(sugeno_system("wtaver"), outputs=(dataclasses.replace(
+            sugeno_system("wtaver").outputs[0], terms=()),), rules=()),
+         "FCL cannot mark a Sugeno system whose outputs have no terms"),
     ]
     for system, message in cases:
         with pytest.raises(ParameterError, match=message.replace("(", r"\(")):

@@ -86,7 +86,8 @@ out. Numbers are written exactly (:func:`~fuzzyservo.formats._text.fmt_float`).
 :func:`dump` raises ParameterError for what FCL (as fuzzylite reads it) cannot hold: an input
 that is not clipped, a :class:`~fuzzyservo.fuzzy.system.Not` of an expression (fuzzylite reads
 only ``is not``), a singleton or Sugeno term with a height below 1, a maximum method (LM, RM,
-MM) over singleton terms, names that are FCL keywords or fuzzylite hedges, and names FCL
+MM) over singleton terms, a weighted-average Sugeno system without any output term (nothing
+would mark it as Sugeno), names that are FCL keywords or fuzzylite hedges, and names FCL
 cannot spell.
 
 fuzzylite's known differences from this reading (documented, not refused): ``COGS`` over
@@ -98,6 +99,8 @@ from __future__ import annotations
 
 import math
 import re
+from collections import deque
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 from ..errors import FormatError, ParameterError
@@ -141,10 +144,11 @@ class _Tok:
     value: float = 0.0
 
 
-def _lex(src: Source) -> list[_Tok]:
+def _lex(src: Source) -> Iterator[_Tok]:
+    """The tokens of the file, lazily (a lexical error is raised when the parser gets there);
+    ends with an endless supply of "eof" tokens."""
     text = src.text
     n = len(text)
-    out: list[_Tok] = []
     i = 0
     while i < n:
         c = text[i]
@@ -164,22 +168,22 @@ def _lex(src: Source) -> list[_Tok]:
             i = n if end < 0 else end + 1
             continue
         if two == ":=":
-            out.append(_Tok(":=", two, i))
+            yield _Tok(":=", two, i)
             i += 2
             continue
         if two == "..":
-            out.append(_Tok("..", two, i))
+            yield _Tok("..", two, i)
             i += 2
             continue
         if c in ":;(),|":
-            out.append(_Tok(c, c, i))
+            yield _Tok(c, c, i)
             i += 1
             continue
         m = _SIGNED_WORD.match(text, i)
         if m:
             word = m.group()
             sign = -1.0 if word[0] == "-" else 1.0
-            out.append(_Tok("num", word, i, sign * _NUM_WORDS[word[1:].lower()]))
+            yield _Tok("num", word, i, sign * _NUM_WORDS[word[1:].lower()])
             i = m.end()
             continue
         m = _NUM.match(text, i)
@@ -188,18 +192,18 @@ def _lex(src: Source) -> list[_Tok]:
             if end < n and (text[end].isalnum() or text[end] == "_"):
                 raise src.error(i, f"malformed number {text[i:end + 1]!r}")
             word = m.group()
-            out.append(_Tok("num", word, i, float(word)))
+            yield _Tok("num", word, i, float(word))
             i = end
             continue
         m = _ID.match(text, i)
         if m:
-            out.append(_Tok("id", m.group(), i))
+            yield _Tok("id", m.group(), i)
             i = m.end()
             continue
-        out.append(_Tok("?", c, i))  # the parser says what it expected here
+        yield _Tok("?", c, i)  # the parser says what it expected here
         i += 1
-    out.append(_Tok("eof", "", n))
-    return out
+    while True:
+        yield _Tok("eof", "", n)
 
 
 # --------------------------------------------------------------------------------------------
@@ -353,11 +357,11 @@ def _describe(t: _Tok) -> str:
 class _Parser:
     """Recursive descent over the token list (one instance per file)."""
 
-    def __init__(self, src: Source, toks: list[_Tok]) -> None:
+    def __init__(self, src: Source, toks: Iterator[_Tok]) -> None:
         self.src = src
         self.toks = toks
-        self.i = 0
-        self.fb_tok: _Tok = toks[0]
+        self.ahead: deque[_Tok] = deque()
+        self.fb_tok: _Tok = self.peek()
         self.fb_name: str | None = None
         self.decls: dict[str, _Decl] = {}
         self.order_in: list[str] = []
@@ -368,13 +372,13 @@ class _Parser:
 
     # -- token helpers ----------------------------------------------------------------------
     def peek(self, k: int = 0) -> _Tok:
-        j = min(self.i + k, len(self.toks) - 1)
-        return self.toks[j]
+        while len(self.ahead) <= k:
+            self.ahead.append(next(self.toks))
+        return self.ahead[k]
 
     def advance(self) -> _Tok:
-        t = self.toks[self.i]
-        if self.i < len(self.toks) - 1:
-            self.i += 1
+        t = self.peek()
+        self.ahead.popleft()
         return t
 
     def err(self, t: _Tok, msg: str) -> FormatError:
@@ -1241,6 +1245,11 @@ def dump(system: FuzzySystem) -> str:
                 f"and this reader clips inputs to their RANGE")
     for v in system.outputs:
         _check_name("output", v.name)
+    if system.kind == "sugeno" and system.defuzzifier == "wtaver" \
+            and not any(v.terms for v in system.outputs):
+        raise ParameterError(
+            "FCL cannot mark a Sugeno system whose outputs have no terms: it is read as Sugeno "
+            "from its Constant / Linear terms (or METHOD COGSS)")
     for role, vs in (("input", system.inputs), ("output", system.outputs)):
         for v in vs:
             for t in v.terms:
