@@ -19,7 +19,15 @@ import numpy as np
 import pytest
 
 from fuzzyservo.errors import FormatError, ParameterError
-from fuzzyservo.formats.fll import MAX_DEPTH, WRITE_RESOLUTION, dump, parse
+from fuzzyservo.formats.fll import (
+    MAX_DEPTH,
+    MAX_NUMBERS,
+    MAX_TERMS,
+    MAX_VARIABLES,
+    WRITE_RESOLUTION,
+    dump,
+    parse,
+)
 from fuzzyservo.fuzzy import general
 from fuzzyservo.fuzzy.system import (
     And,
@@ -488,6 +496,19 @@ def test_nesting_is_bounded() -> None:
     nots = "not " * 10_000
     assert f"more than {MAX_DEPTH} nested" in error_of(
         add_rules(BASE, f"if x is {nots}lo then y is a"))
+
+
+def test_sizes_are_bounded() -> None:
+    many = " ".join(["0.5"] * (MAX_NUMBERS + 1))
+    text = BASE.replace("term: hi Ramp 4 10", f"term: hi Discrete {many}")
+    line, col = at(text, 7, "0.5", 4 * MAX_NUMBERS)
+    assert error_of(text).startswith(f"f.fll:{line}:{col}: term 'hi': more than {MAX_NUMBERS}")
+    terms = "".join(f"  term: t{i} Ramp 0 1\n" for i in range(MAX_TERMS + 1))
+    text = BASE.replace("  term: hi Ramp 4 10\n", terms)
+    assert error_of(text).startswith(f"f.fll:{6 + MAX_TERMS}:3: input 'x': more than")
+    inputs = "".join(f"InputVariable: v{i}\n  range: 0 1\n" for i in range(MAX_VARIABLES))
+    assert f"more than {MAX_VARIABLES} variables" in error_of(
+        BASE.replace("OutputVariable: y", inputs + "OutputVariable: y"))
 
 
 def test_mutated_files_raise_only_format_errors() -> None:

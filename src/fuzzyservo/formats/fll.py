@@ -120,10 +120,17 @@ from ..fuzzy.system import (
 )
 from ._text import Source, fmt_float, parse_float
 
-__all__ = ["MAX_DEPTH", "WRITE_RESOLUTION", "dump", "parse"]
+__all__ = ["MAX_DEPTH", "MAX_NUMBERS", "MAX_TERMS", "MAX_VARIABLES", "WRITE_RESOLUTION", "dump",
+           "parse"]
 
 #: Deepest nesting of parentheses and ``not`` hedges in one rule.
 MAX_DEPTH = 200
+#: Most numbers after a term's class (Discrete: 512 points), terms per variable, and
+#: variables: far above hand-written systems, and they keep the model's checks (quadratic in
+#: these counts) fast on hostile files.
+MAX_NUMBERS = 1024
+MAX_TERMS = 1024
+MAX_VARIABLES = 1024
 #: Resolution written after Centroid, Bisector and the maxima defuzzifiers [samples].
 WRITE_RESOLUTION = 10_000
 
@@ -341,6 +348,9 @@ def _term(src: Source, ln: _Line) -> Term:
         raise src.error(cls.off, f"unsupported term class: {cls.text} (supported: "
                                  f"{supported})")
     shape, n = _CLASSES[cls.text]
+    if len(toks) - 2 > MAX_NUMBERS:
+        raise src.error(toks[2 + MAX_NUMBERS].off, f"term {name.text!r}: more than "
+                                                   f"{MAX_NUMBERS} numbers")
     values = [_number(src, t, f"term {name.text!r} ({cls.text})") for t in toks[2:]]
     height = 1.0
     if cls.text == "Discrete":
@@ -403,6 +413,9 @@ def _variable(src: Source, blk: _Block, output: bool) -> _Var:
     clip = _bool(src, f["lock-range"]) if "lock-range" in f else False
     terms: list[Term] = []
     seen: dict[str, int] = {}
+    if len(blk.items) > MAX_TERMS:
+        raise src.error(blk.items[MAX_TERMS].key_off, f"{what} {name!r}: more than "
+                                                      f"{MAX_TERMS} terms")
     for ln in blk.items:
         t = _term(src, ln)
         if t.name in seen:
@@ -688,6 +701,8 @@ def parse(text: str, source: str = "<string>") -> FuzzySystem:
                 raise src.error(blk.head.val_off, f"variable {var.name!r} already declared at "
                                                   f"line {declared[var.name]}")
             declared[var.name] = src.where(blk.head.key_off)[0]
+            if len(declared) > MAX_VARIABLES:
+                raise src.error(blk.head.key_off, f"more than {MAX_VARIABLES} variables")
             (outputs if var.output else inputs).append(var)
         else:
             # Rules see the variables declared so far, as fuzzylite's reader does.
