@@ -78,6 +78,8 @@ Decisions:
 - fuzzylite's MeanOfMaximum is the middle of the *first* plateau of the sampled maximum; the
   model's ``mom`` is the mean of the maximising set. They agree when the maximum is reached on
   one interval, which is the common case; the reader and writer map one to the other.
+- Sizes are bounded: :data:`MAX_DEPTH` nested parentheses and ``not``, :data:`MAX_NUMBERS`
+  numbers per term, :data:`MAX_TERMS` terms per variable, :data:`MAX_VARIABLES` variables.
 - Names must be the model's identifiers; the Engine name may be absent or empty (the system is
   then called ``fuzzy``). Keys are case-sensitive, as in fuzzylite; a repeated key (two
   ``range:`` lines) is an error (fuzzylite keeps the last one).
