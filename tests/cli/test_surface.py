@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fuzzyservo.cli import main
+from fuzzyservo.formats import read_system, write_system
+from fuzzyservo.fuzzy.general import evaluate
 from fuzzyservo.paper import alpha_system, du_system
+from tests.cli.test_fis import ONE_FCL, THREE_FIS, TWO_FIS
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -87,9 +92,95 @@ def test_bad_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[str], argv:
     assert match in err and err.count("\n") == 1
 
 
-def test_unknown_system_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["surface", "beta", "--grid", "3"]) == 2
-    assert "invalid choice: 'beta'" in capsys.readouterr().err
+def test_unknown_system_is_one_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["surface", "beta", "--grid", "3", "--out", "o.csv"]) == 2
+    err = capsys.readouterr().err
+    assert err == ("fuzzyservo: error: unknown system 'beta': give alpha or du (the systems of "
+                   "Fig. 3) or a fuzzy-system file ending in .fis, .fcl, .fll\n")
+
+
+# ---------------------------------------------------------------------------------------------
+# a fuzzy-system file in place of du / alpha
+
+
+@pytest.fixture
+def two_fis(tmp_path: Path) -> Path:
+    p = tmp_path / "two.fis"
+    p.write_text(TWO_FIS)
+    return p
+
+
+def test_surface_of_a_file_on_a_grid(two_fis: Path, tmp_path: Path) -> None:
+    out, png, mf = tmp_path / "s.csv", tmp_path / "s.png", tmp_path / "m.svg"
+    assert main(["surface", str(two_fis), "--grid", "5", "--out", str(out), "--plot", str(png),
+                 "--mf-plot", str(mf)]) == 0
+    header, data = _read(out)
+    assert header == ["x", "y", "value"]  # the file's input names, then value
+    # the grid spans the inputs' ranges, x = [0, 10] and y = [-1, 1], the first fastest
+    np.testing.assert_array_equal(data[:, 0], np.tile(np.linspace(0, 10, 5), 5))
+    np.testing.assert_array_equal(data[:, 1], np.repeat(np.linspace(-1, 1, 5), 5))
+    # the first output u, exactly as the evaluator gives it
+    np.testing.assert_array_equal(data[:, 2], evaluate(read_system(two_fis), data[:, :2])[:, 0])
+    # x = 0: rule 1 alone, the symmetric triangle (0, 0.25, 0.5): its peak (rounding only);
+    # x = 5: no rule fires, the .fis default (the middle of [0, 1])
+    assert (np.abs(data[data[:, 0] == 0, 2] - 0.25) <= 1e-15).all()
+    assert (data[data[:, 0] == 5, 2] == 0.5).all()
+    assert png.read_bytes()[:8] == PNG and png.stat().st_size > 10_000
+    assert mf.read_bytes().lstrip()[:5] in (b"<?xml", b"<svg ")
+
+
+def test_surface_of_a_file_at_points_with_nan(tmp_path: Path) -> None:
+    two = read_system(_write(tmp_path / "two.fis", TWO_FIS))
+    no_default = dataclasses.replace(two, outputs=tuple(
+        dataclasses.replace(v, default=math.nan) for v in two.outputs))
+    fll = tmp_path / "two.fll"
+    write_system(no_default, fll)
+    pts = _write(tmp_path / "p.csv", "y,e,x\n0.5,9,0\n0,9,5\n-1,9,10\n")
+    out = tmp_path / "v.csv"
+    assert main(["surface", str(fll), "--at", str(pts), "--out", str(out)]) == 0
+    lines = out.read_text().splitlines()
+    assert lines[0] == "x,y,value" and lines[2] == "5.0,0.0,nan"  # no rule fires, no default
+    _, data = _read(out)
+    np.testing.assert_array_equal(data[:, :2], [[0, 0.5], [5, 0], [10, -1]])
+    np.testing.assert_array_equal(data[:, 2], evaluate(no_default, data[:, :2])[:, 0])
+
+
+@pytest.mark.parametrize(("text", "extra", "match"), [
+    (TWO_FIS, ["--at", "{d}/ede.csv", "--out", "{d}/o.csv"],
+     "points CSV '{d}/ede.csv' lacks column(s) x, y; expected x, y (found 'e', 'de')"),
+    (TWO_FIS.replace("Name='y'", "Name='value'"), ["--grid", "3", "--out", "{d}/o.csv"],
+     "an input is named 'value', the name of the output column"),
+    (ONE_FCL, ["--grid", "3", "--out", "{d}/o.csv"],
+     "surface needs a system with two inputs; 'one' has 1 (x); use fuzzyservo fis eval"),
+    (THREE_FIS, ["--grid", "3", "--out", "{d}/o.csv"], "'three' has 3 (a, b, c)"),
+    (TWO_FIS, ["--grid", "3", "--out", "{d}/sys.fis"], "is also an input of this command"),
+    (TWO_FIS, ["--grid", "3", "--mf-plot", "{d}/sys.fis"], "is also an input of this command"),
+    (TWO_FIS, ["--grid", "3", "--plot", "{d}/no/s.png"], "folder '{d}/no' does not exist"),
+    (TWO_FIS.replace("Range=[0 10]", "Range=[10 0]"), ["--grid", "3", "--out", "{d}/o.csv"],
+     "{d}/sys.fis:"),
+])
+def test_surface_of_a_bad_file(tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str,
+                               extra: list[str], match: str) -> None:
+    sys_file = _write(tmp_path / ("sys.fcl" if text == ONE_FCL else "sys.fis"), text)
+    _write(tmp_path / "ede.csv", "e,de\n0,0\n")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main(["surface", str(sys_file), *(a.format(d=tmp_path) for a in extra)]) == 2
+    err = capsys.readouterr().err
+    assert match.format(d=tmp_path) in err and err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # nothing written
+    assert sys_file.read_text() == text
+
+
+def test_surface_of_a_missing_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["surface", str(tmp_path / "nope.fcl"), "--grid", "3", "--out",
+                 str(tmp_path / "o.csv")]) == 2
+    assert f"cannot read '{tmp_path / 'nope.fcl'}'" in capsys.readouterr().err
+    assert not (tmp_path / "o.csv").exists()
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
 
 
 def test_reproduce_writes_fig3(reproduced: Path) -> None:
