@@ -120,7 +120,8 @@ def register(subparsers: Any) -> None:
                        help=f"N points over the input's range (one input) or an N x N grid "
                             f"(two inputs, the first varying fastest), 2 <= N <= {MAX_GRID}")
     p.add_argument("--out", metavar="OUT.csv",
-                   help="CSV to write (default, or '-': standard output)")
+                   help="CSV to write; without --out, or with '-', the CSV goes to standard "
+                        "output")
     p.add_argument("--no-rule-value", type=_finite_float, metavar="V",
                    help="the value of an output whose default is NaN where no rule fires for "
                         "it (MATLAB returns the middle of the range, fuzzylite NaN); a "
