@@ -473,7 +473,7 @@ def compile_system(system: FuzzySystem) -> CompiledSystem:
         else:
             out_tab += [mode, 0, 0, 0, 0, n_t, -1]
     # scratch sizes (see _work_layout)
-    max_bp = max([out_tab[6 * k + 2] for k in range(n_out)] + [2])
+    max_bp = max([out_tab[_OUT_FIELDS * k + 2] for k in range(n_out)] + [2])
     ints = [0] * _HEADER
     ints[H_MAGIC] = MAGIC
     ints[H_NIN] = n_in
@@ -543,7 +543,8 @@ def _pivot_table(system: FuzzySystem, flat: int, var_tab: list[int]) -> list[int
 def _work_size(n_in: int, n_terms: int, n_rules: int, stack: int, items: int, n_bp: int,
                n_cand: int) -> int:
     n_seg = 2 * max(n_bp - 1, 1) * n_cand
-    return (n_in + n_terms + n_rules + stack + 4 * items + n_cand + 4 * n_seg + 64)
+    # eval_point: xin, mu, w, stack, hts, h, then lines c, m, hh (3 items), candidates, pieces
+    return (n_in + n_terms + n_rules + stack + 5 * items + n_cand + 4 * n_seg + 64)
 
 
 # ---------------------------------------------------------------------------------------------
