@@ -347,6 +347,8 @@ def _draw_panel(ax: Axes, panel: VariablePanel) -> None:
         ax.text(x, top + 0.03 + _LABEL_STEP * level, name, ha=ha, va="bottom", fontsize=8,
                 color=colour, clip_on=False)
     ax.set_ylim(0.0, 1.18 + _LABEL_STEP * max(levels, default=0))
+    if any(c.stem for c in panel.curves):  # a stem at an end of the range stays visible
+        ax.set_xlim(lo - 0.04 * (hi - lo), hi + 0.04 * (hi - lo))
 
 
 #: Height of one row of term labels [membership units].
