@@ -29,6 +29,7 @@ import pytest
 
 from fuzzyservo.fuzzy.general import (
     evaluate,
+    membership,
 )
 from fuzzyservo.fuzzy.system import (
     And,
@@ -168,3 +169,20 @@ def test_scratch_holds_the_largest_output_of_many() -> None:
     system = FuzzySystem(inputs=(ONE_IN,), outputs=(single, single.__class__(
         "s2", single.range, single.terms), many), rules=rules)
     assert_exact(system, [[0.3], [0.7], [0.5], [0.0]])
+
+
+@pytest.mark.parametrize(("implication", "value"), [
+    ("min", (2.0 * 0.5 + 8.0 * 0.2) / (0.5 + 0.2)),  # min(0.8, 0.5), min(0.2, 1)
+    ("product", (2.0 * 0.4 + 8.0 * 0.2) / (0.4 + 0.2)),  # 0.8 * 0.5, 0.2 * 1
+])
+def test_singleton_height_is_implied_like_any_membership(implication: str, value: float
+                                                         ) -> None:
+    # A singleton's membership is its height at its position (``membership('singleton')``);
+    # min implication clips it: min(w, height). It used to scale it (w * height) under min.
+    out = Variable("y", (0.0, 10.0), (Term("a", "singleton", (2.0,), height=0.5),
+                                      Term("b", "singleton", (8.0,))))
+    system = FuzzySystem(inputs=(ONE_IN,), outputs=(out,), implication=implication,
+                         rules=(Rule(Is(0, 0), (Consequent(0, 0),)),
+                                Rule(Is(0, 1), (Consequent(0, 1),))))
+    assert evaluate(system, [0.2])[0] == pytest.approx(value, rel=1e-15, abs=0)  # rounding
+    assert membership("singleton", (2.0,), [2.0, 2.5], height=0.5).tolist() == [0.5, 0.0]

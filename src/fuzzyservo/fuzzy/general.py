@@ -945,6 +945,7 @@ def _singletons(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArr
     """COGS and the maxima of singleton outputs (heights aggregated per singleton)."""
     n_t = ints[ints[H_OUTS] + _OUT_FIELDS * o + 5]
     agg = ints[H_AGG]
+    impl = ints[H_IMPL]
     tt = ints[H_TERMS]
     first = ints[ints[H_VARS] + 2 * (ints[H_NIN] + o)]
     for j in range(n_t):
@@ -952,7 +953,8 @@ def _singletons(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArr
     for i in range(n_items):
         j = lab[i]
         off = ints[tt + 3 * (first + j) + 1]
-        v = h[i] * f[off + 1]  # implication of a height-1 spike, scaled by the term height
+        # the implication of the strength with the singleton's membership, its height
+        v = min(h[i], f[off + 1]) if impl == 0 else h[i] * f[off + 1]
         if agg == 0:
             hts[j] = max(hts[j], v)
         elif agg == 1:
