@@ -163,6 +163,10 @@ MALFORMED = [
     ("NumOutputs=2", "NumOutputs=0", None, 12, "NumOutputs: a fuzzy system needs at least one"),
     ("NumRules=6", "NumRules=5", None, 10, "NumRules=5 but [Rules] has 6 rules"),
     ("NumMFs=6", "NumMFs=7", None, 8, "NumMFs=7 but there is no MF7"),
+    ("NumMFs=6", "NumMFs=10001", None, 8, "unsupported NumMFs=10001 (supported: at most "
+     "10000)"),
+    ("NumInputs=2", "NumInputs=1001", None, 11, "unsupported NumInputs=1001 (supported: at "
+     "most 1000)"),
     ("NumMFs=6", "NumMFs=5", _line("MF6='sig':'sigmf',[2 7]"), 1, "MF6 but NumMFs=5"),
     ("1 1, 1 2 (1) : 1", "1.2 1, 1 2 (1) : 1", None, 1,
      "unsupported hedge in rule: index 1.2 of input 'x' (fuzzylite and Octave read the "

@@ -51,6 +51,8 @@ Reading
   ``_`` and ``.``. Other characters become ``_`` (``'LDL-Level'`` -> ``LDL_Level``), an empty
   name becomes ``fuzzy`` / ``inputK`` / ``outputK`` / ``mfK``; each change is noted. Two names
   that end up equal are refused.
+- Sizes: at most :data:`MAX_VARIABLES` inputs and as many outputs, :data:`MAX_TERMS` terms a
+  variable; nothing else is bounded but the text (there is no nesting to recurse into).
 - Rules: a term index with a fraction (``1.2``: a hedge for fuzzylite and Octave) is refused; a
   rule that mentions no input, or no output, is refused (fuzzylite writes such rules for rules
   that chain outputs, which .fis cannot hold), and so is a negative output index (NOT on an
@@ -106,7 +108,13 @@ from ..fuzzy.system import (
 )
 from ._text import Source, fmt_float, parse_float
 
-__all__ = ["dump", "parse"]
+__all__ = ["MAX_TERMS", "MAX_VARIABLES", "dump", "parse"]
+
+#: Most inputs (and most outputs) a file may declare: far above any published system.
+MAX_VARIABLES = 1000
+#: Most terms of one variable: above the largest clustered (ANFIS) systems, and low enough
+#: that the model's checks of a variable stay fast.
+MAX_TERMS = 10_000
 
 #: MATLAB name -> (model shape, number of values or None for variable, permutation: model
 #: parameter i is file value ``perm[i]``; None: same order).
@@ -180,12 +188,13 @@ class _Entry:
 @dataclass
 class _Section:
     """A section: its kind ("System", "Input", "Output", "Rules"), number, header offset,
-    key lines (in order) and, for [Rules], the rule lines with their offsets."""
+    key lines (in order and by key) and, for [Rules], the rule lines with their offsets."""
 
     kind: str
     number: int
     off: int
     entries: list[_Entry] = field(default_factory=list)
+    keys: dict[str, _Entry] = field(default_factory=dict)
     lines: list[tuple[str, int]] = field(default_factory=list)
 
 
@@ -238,11 +247,12 @@ class _Reader:
                 raise self.err(off, f"expected KEY=VALUE in [{sec.kind}"
                                     f"{sec.number or ''}], found {stripped[:40]!r}")
             key = m.group(1)
-            for e in sec.entries:
-                if e.key == key:
-                    raise self.err(off, f"repeated key {key} (first given on line "
-                                        f"{self.src.where(e.key_off)[0]})")
-            sec.entries.append(_Entry(key, stripped[m.end():], off, off + m.end()))
+            if key in sec.keys:
+                raise self.err(off, f"repeated key {key} (first given on line "
+                                    f"{self.src.where(sec.keys[key].key_off)[0]})")
+            entry = _Entry(key, stripped[m.end():], off, off + m.end())
+            sec.entries.append(entry)
+            sec.keys[key] = entry
         return out
 
     def header(self, text: str, off: int) -> _Section:
@@ -333,7 +343,7 @@ class _Reader:
         if len(system) > 1:
             raise self.err(system[1].off, "repeated section [System]")
         sys_sec = system[0]
-        keys = {e.key: e for e in sys_sec.entries}
+        keys = sys_sec.keys
         for e in sys_sec.entries:
             if e.key not in _SYSTEM_KEYS:
                 raise self.err(e.key_off, f"unsupported key in [System]: {e.key} "
@@ -353,6 +363,10 @@ class _Reader:
         if n_in < 1 or n_out < 1:
             bad = n_in_e if n_in < 1 else n_out_e
             raise self.err(bad.val_off, f"{bad.key}: a fuzzy system needs at least one")
+        for e, n in ((n_in_e, n_in), (n_out_e, n_out)):
+            if n > MAX_VARIABLES:
+                raise self.err(e.val_off, f"unsupported {e.key}={n} (supported: at most "
+                                          f"{MAX_VARIABLES})")
         methods: dict[str, str] = {}
         for key, table in (("AndMethod", _AND), ("OrMethod", _OR), ("ImpMethod", _IMP),
                            ("AggMethod", _AGG), ("DefuzzMethod", _DEFUZZ)):
@@ -458,6 +472,9 @@ class _Reader:
             raise self.err(keys["Range"].val_off, f"Range: expected [lo hi], found "
                                                   f"{keys['Range'].value.strip()[:40]!r}")
         n_mfs = self.integer(keys["NumMFs"])
+        if n_mfs > MAX_TERMS:
+            raise self.err(keys["NumMFs"].val_off, f"unsupported NumMFs={n_mfs} (supported: "
+                                                   f"at most {MAX_TERMS})")
         for k, e in mfs.items():
             if not 1 <= k <= n_mfs:
                 raise self.err(e.key_off, f"MF{k} but NumMFs={n_mfs}")
@@ -601,9 +618,11 @@ class _Reader:
             nonlocal pos
             got = []
             while toks[pos][0] not in ",():":
-                x = parse_float(toks[pos][0])
-                assert x is not None  # matched _NUMBER
-                got.append((x, toks[pos][1]))
+                tok, col = toks[pos]
+                x = parse_float(tok)
+                if x is None:
+                    raise self.err(off + col, f"rule: expected a number, found {tok[:40]!r}")
+                got.append((x, col))
                 pos += 1
             return got
 
