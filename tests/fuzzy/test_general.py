@@ -186,3 +186,24 @@ def test_singleton_height_is_implied_like_any_membership(implication: str, value
                                 Rule(Is(0, 1), (Consequent(0, 1),))))
     assert evaluate(system, [0.2])[0] == pytest.approx(value, rel=1e-15, abs=0)  # rounding
     assert membership("singleton", (2.0,), [2.0, 2.5], height=0.5).tolist() == [0.5, 0.0]
+
+
+@pytest.mark.parametrize("defuzzifier", ["centroid", "bisector", "mom", "som", "lom"])
+def test_vertical_edge_within_rounding_of_another_vertex(defuzzifier: str) -> None:
+    # Output vertices closer than 1e-13 of the range are merged into one breakpoint; the
+    # lines on the intervals were drawn through the terms' values at the merged ends, so a
+    # jump a rounding error away from another vertex became a ramp over a whole interval.
+    eps = 2.0**-50
+    out = Variable("y", (0.0, 1.0), (
+        Term("step", "discrete", (0.0, 0.0, 0.5 + eps, 0.0, 0.5 + eps, 1.0, 1.0, 1.0)),
+        Term("tri", "triangle", (0.25, 0.5, 0.75)),
+        # narrower than the merge: its area (1e-14) is below the tolerance; kept below the
+        # maximum, since maxima methods do not see a term that thin (see the report)
+        Term("sliver", "rectangle", (0.125, 0.125 + 1e-14), height=0.25),
+    ))
+    rules = (Rule(Is(0, 0), (Consequent(0, 0), Consequent(0, 2))),
+             Rule(Is(0, 1), (Consequent(0, 1),)))
+    for implication in ("min", "product"):
+        system = FuzzySystem(inputs=(ONE_IN,), outputs=(out,), rules=rules,
+                             implication=implication, defuzzifier=defuzzifier)
+        assert_exact(system, [[0.3], [0.6], [0.0], [1.0]])

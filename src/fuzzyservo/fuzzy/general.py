@@ -347,43 +347,36 @@ def _pl_tables(system: FuzzySystem, k: int) -> tuple[FloatArray, FloatArray, Flo
     slope = np.empty((n_int, n))
     icpt = np.empty((n_int, n))
     for j, t in enumerate(var.terms):
-        f = np.array(_term_floats(t.shape, t.params, t.height))
-        code = SHAPE_CODE[t.shape]
         for i in range(n_int):
             p, q = float(bp[i]), float(bp[i + 1])
-            # the line through the one-sided vertex values at the interval's ends (exact where
-            # the ends are vertices), else through two interior samples
-            v0 = _vertex_value(t, p, right=True)
-            v1 = _vertex_value(t, q, right=False)
-            if v0 is None or v1 is None:
-                y1 = p + (q - p) / 3.0
-                y2 = p + 2.0 * (q - p) / 3.0
-                v0 = float(mf_value(code, f, 0, len(t.params), y1))
-                v1 = float(mf_value(code, f, 0, len(t.params), y2))
-                p, q = y1, y2
+            # the line the term follows inside (p, q): a vertex merged into p or q above lies
+            # outside the piece, so its jump (if any) stays within rounding of the end
+            v0, v1 = _interval_line(t, p, q)
             slope[i, j] = (v1 - v0) / (q - p)
             icpt[i, j] = v0 - slope[i, j] * p
     return bp, slope, icpt
 
 
-def _vertex_value(t: object, x: float, right: bool) -> float | None:
-    """One-sided limit of a piecewise-linear term at x (from the right of x if ``right``),
-    computed from its vertices (exact for vertex values)."""
+def _interval_line(t: object, p: float, q: float) -> tuple[float, float]:
+    """Values at p and q of the line a piecewise-linear term follows inside (p, q): its piece
+    that contains the middle of the interval, from its vertices (exact where p and q are
+    vertices of that piece)."""
     verts = t.vertices  # type: ignore[attr-defined]
-    xs = [p for p, _ in verts]
-    ys = [q for _, q in verts]
-    if x < xs[0] or (x == xs[0] and not right):
-        return float(ys[0])
-    if x > xs[-1] or (x == xs[-1] and right):
-        return float(ys[-1])
-    # find the segment [xs[i], xs[i+1]] containing x on the requested side
+    xs = [x for x, _ in verts]
+    ys = [y for _, y in verts]
+    mid = 0.5 * (p + q)
+    if mid <= xs[0]:
+        return float(ys[0]), float(ys[0])
+    if mid >= xs[-1]:
+        return float(ys[-1]), float(ys[-1])
     for i in range(len(xs) - 1):
         a, b = xs[i], xs[i + 1]
-        if b == a:
-            continue
-        if (a <= x < b) if right else (a < x <= b):
-            return float(ys[i] + (ys[i + 1] - ys[i]) * (x - a) / (b - a))
-    return None
+        if a <= mid < b:
+            y0, y1 = ys[i], ys[i + 1]
+            v0 = y0 if p == a else y0 + (y1 - y0) * (p - a) / (b - a)
+            v1 = y1 if q == b else y0 + (y1 - y0) * (q - a) / (b - a)
+            return float(v0), float(v1)
+    raise AssertionError("unreachable: the vertices cover the middle of the interval")
 
 
 def compile_system(system: FuzzySystem) -> CompiledSystem:
