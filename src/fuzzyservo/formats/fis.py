@@ -24,8 +24,8 @@ Reading
   one value more, the term's height, is kept). Refused by name: fuzzylite's ``concavemf``,
   ``cosinemf``, ``spikemf``, ``binarymf``, ``function``, and any other name.
 - MATLAB's ``dsigmf`` is the plain difference of the two sigmoids; the model (like fuzzylite)
-  takes its absolute value. They differ only where the second sigmoid exceeds the first (for
-  the usual ``c1 < c2`` with slopes of one sign, nowhere when the slopes are equal).
+  takes its absolute value. They differ only where the second sigmoid exceeds the first
+  (nowhere for equal slopes a1 = a2 > 0 and c1 < c2).
 - A MATLAB membership function given more values than it takes (old files write
   ``trimf [-10 0 10 0]``) is read as MATLAB does, from the first ones (``trimf`` uses
   ``params(1:3)``); the ignored values are named in ``FuzzySystem.notes``. fuzzylite instead
@@ -73,12 +73,17 @@ writer writes only what MATLAB reads: ``ParameterError`` names anything else:
 - an antecedent other than one clause or a flat AND / OR of clauses (``Is``, negated or not,
   or ``Not(Is)``) over distinct inputs; a rule with two consequents on one output.
 
-Trapezoid shoulders are written with ``-inf`` / ``inf`` feet: fuzzylite reads them, Octave's
-fuzzy-logic-toolkit evaluates them right, and MATLAB's classic ``trapmf`` gives NaN on the
-infinite side of the ratio, which its ``min`` then skips. A .fis rule lists its clauses in input
-order and its consequents in output order: a rule whose clauses (or consequents) are in another
-order is written, and reads back, in that order (AND and OR are symmetric; with ``product`` or
-``probor`` over three or more clauses the last bit of a firing strength may differ).
+Trapezoid shoulders are written with ``-inf`` / ``inf`` feet: fuzzylite 6 and Octave's
+fuzzy-logic-toolkit 0.4.6 read and evaluate them right (checked); MATLAB was not available to
+check (its classic ``trapmf.m`` computes NaN for the infinite side's ratio, which ``min``
+skips). Octave 0.4.6 reads the files written here, but refuses vertical edges (it needs
+a < b < c for ``trimf`` and a < b for ``trapmf``), which MATLAB and fuzzylite accept.
+
+A .fis rule has one column per input and one per output, so a rule whose clauses (or
+consequents) are in another order is written, and reads back, in input (output) order, and
+``Not(Is(...))`` reads back as ``Is(..., negated=True)``: the same values (AND and OR are
+symmetric; with ``product`` or ``probor`` over three or more clauses the last bit of a firing
+strength may differ), so ``parse(dump(s)) == s`` holds for rules already in that form.
 """
 
 from __future__ import annotations
