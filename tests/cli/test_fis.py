@@ -444,7 +444,8 @@ def test_info_json_is_strict(files: dict[str, Path], capsys: pytest.CaptureFixtu
     assert d["notes"] == []
     assert main(["fis", "info", str(files["one.fcl"]), "--json"]) == 0
     d = json.loads(capsys.readouterr().out, parse_constant=no_constants)
-    assert d["outputs"][0]["default"] is None and d["outputs"][0]["clip"] is False
+    # a Mamdani output's clip is canonically True (its value always lies in its range)
+    assert d["outputs"][0]["default"] is None and d["outputs"][0]["clip"] is True
     assert d["notes"] == list(read_system(files["one.fcl"]).notes)
 
 

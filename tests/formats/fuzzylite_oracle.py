@@ -44,13 +44,15 @@ def _run(args: Sequence[str]) -> str:
     return proc.stdout
 
 
-def fuzzylite_translate(text: str, fmt: str, to: str = "fll") -> str:
-    """fuzzylite's translation of a ``fmt`` file to ``to`` (its reader, then its writer)."""
+def fuzzylite_translate(text: str, fmt: str, to: str = "fll", decimals: int = 17) -> str:
+    """fuzzylite's translation of a ``fmt`` file to ``to`` (its reader, then its writer, with
+    ``decimals`` decimals: its default of 3 would round the parameters)."""
     with tempfile.TemporaryDirectory() as d:
         src = Path(d) / f"in.{fmt}"
         dst = Path(d) / f"out.{to}"
         src.write_text(text, encoding="utf-8")
-        _run(["-i", str(src), "-if", fmt, "-o", str(dst), "-of", to])
+        _run(["-i", str(src), "-if", fmt, "-o", str(dst), "-of", to, "-decimals",
+              str(decimals)])
         return dst.read_text(encoding="utf-8")
 
 

@@ -427,7 +427,7 @@ def test_rule_expressions() -> None:
     lo, hi = Is(0, 0), Is(0, 1)
     assert [r.antecedent for r in s.rules] == [
         And((lo, hi, Is(0, 0, True))), And((And((lo, hi)), lo)),
-        Or((Not(lo), Not(And((hi, lo))))), lo, lo, Or((lo, hi))]
+        Or((Is(0, 0, True), Not(And((hi, lo))))), lo, lo, Or((lo, hi))]  # NOT clause: canonical
     assert [r.weight for r in s.rules] == [1.0, 0.25, 1.0, 1.0, 1.0, 1.0]
     assert s.rules[3].consequents == (Consequent(0, 1), Consequent(0, 0))
     assert s.rules[4].consequents == (Consequent(0, 1), Consequent(0, 0))
@@ -665,7 +665,7 @@ def test_writer_refuses_what_fcl_cannot_hold() -> None:
     cases: list[tuple[FuzzySystem, str]] = [
         (with_ops(s, inputs=(dataclasses.replace(x, clip=False),)),
          "FCL cannot hold input 'x' without clipping"),
-        (with_ops(s, rules=(Rule(Not(Is(0, 0)), (Consequent(0, 0),)),)),
+        (with_ops(s, rules=(Rule(Not(And((Is(0, 0), Is(0, 0)))), (Consequent(0, 0),)),)),
          "cannot hold NOT applied to an expression (rule 1"),
         (with_ops(s, inputs=(dataclasses.replace(x, terms=(T("very", "ramp", 0, 10),)),),
                   rules=()), "term name 'very': fuzzylite reads it as a hedge"),

@@ -252,9 +252,9 @@ def test_precedence_and_parentheses() -> None:
 def test_hedge_not() -> None:
     assert antecedent("if x is not lo then y is a") == Is(0, 0, negated=True)
     # Each `not` is 1 - value, applied in turn (fuzzylite's hedges).
-    assert antecedent("if x is not not lo then y is a") == Not(Is(0, 0, negated=True))
-    assert antecedent("if x is not not not hi then y is a") == \
-        Not(Not(Is(0, 1, negated=True)))
+    # (the model keeps the canonical form: NOT of a negated clause is the clause)
+    assert antecedent("if x is not not lo then y is a") == Is(0, 0)
+    assert antecedent("if x is not not not hi then y is a") == Is(0, 1, negated=True)
 
 
 def test_weights_and_several_consequents() -> None:
@@ -618,8 +618,7 @@ def test_nonstandard_not_is_written_with_the_same_value() -> None:
              Rule(Not(Not(Is(0, 1))), (Consequent(0, 1),)))
     s2 = FuzzySystem(name="n", inputs=s.inputs, outputs=s.outputs, rules=rules)
     back = parse(dump(s2))
-    assert [r.antecedent for r in back.rules] == [Is(0, 0, negated=True),
-                                                  Not(Is(0, 1, negated=True))]
+    assert [r.antecedent for r in back.rules] == [Is(0, 0, negated=True), Is(0, 1)]
     x = np.linspace(-1.0, 11.0, 25)[:, None] * np.ones((1, 2)) * np.array([1.0, 0.1])
     np.testing.assert_array_equal(general.evaluate(back, x), general.evaluate(s2, x))
 

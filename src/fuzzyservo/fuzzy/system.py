@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Literal, get_args
@@ -191,7 +192,7 @@ class Term:
             need(all(b >= a for a, b in zip(xs, xs[1:], strict=False)) and xs[0] < xs[-1],
                  "x non-decreasing and not all equal")
             need(all(0.0 <= y <= 1.0 for y in ys), "every y in [0, 1]")
-            need(all(xs.count(x) <= 2 for x in xs), "no x more than twice")
+            need(max(Counter(xs).values()) <= 2, "no x more than twice")
         elif s in ("gaussian",):
             need(p[1] > 0.0, "sigma > 0")
         elif s == "gaussian2":
@@ -274,8 +275,7 @@ class Variable:
         if math.isinf(self.default):
             raise ParameterError(
                 f"variable {self.name!r}: default must be finite or NaN, got {self.default!r}")
-        names = [t.name for t in self.terms]
-        dup = sorted({x for x in names if names.count(x) > 1})
+        dup = sorted(n for n, c in Counter(t.name for t in self.terms).items() if c > 1)
         if dup:
             raise ParameterError(f"variable {self.name!r} repeats terms {dup}")
 
@@ -350,6 +350,22 @@ class Rule:
     weight: float = 1.0  #: multiplies the firing strength, in [0, 1] [-]
 
 
+def _canonical(e: Expr) -> Expr:
+    """``Not(Is(v, t, n))`` as ``Is(v, t, not n)``, double negations removed, recursively."""
+    if isinstance(e, Not):
+        inner = _canonical(e.operand)
+        if isinstance(inner, Is):
+            return Is(inner.variable, inner.term, not inner.negated)
+        if isinstance(inner, Not):
+            return inner.operand
+        return Not(inner)
+    if isinstance(e, And):
+        return And(tuple(_canonical(o) for o in e.operands))
+    if isinstance(e, Or):
+        return Or(tuple(_canonical(o) for o in e.operands))
+    return e
+
+
 def walk(expr: Expr) -> Iterator[Is]:
     """Every clause of an expression, left to right."""
     if isinstance(expr, Is):
@@ -385,8 +401,14 @@ class FuzzySystem:
         Mamdani: combination of the implied sets (bounded sum: min(1, a + b); sum: a + b,
         unbounded, as MATLAB's "sum").
     defuzzifier : {"centroid", "bisector", "mom", "som", "lom", "wtaver", "wtsum"}
-        Mamdani: centroid, bisector of area, mean / smallest / largest of maximum. Sugeno:
-        weighted average or weighted sum.
+        Mamdani: centroid, bisector of area, mean / smallest / largest of maximum (mom: the
+        mean of the set where the aggregate reaches its maximum, by length; the mean of its
+        points when it is a finite set). Sugeno: weighted average or weighted sum.
+
+    Notes
+    -----
+    Two forms are made canonical on construction: ``Not(Is(...))`` becomes the negated clause,
+    and a Mamdani output's ``clip`` is True (its value is always in its range).
     """
 
     name: str = "fuzzy"  #: the system's name
@@ -417,8 +439,8 @@ class FuzzySystem:
                     f"{what} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
         if not self.inputs or not self.outputs:
             raise ParameterError("a fuzzy system needs at least one input and one output")
-        names = [v.name for v in self.inputs + self.outputs]
-        dup = sorted({x for x in names if names.count(x) > 1})
+        dup = sorted(n for n, c in Counter(v.name for v in self.inputs + self.outputs).items()
+                     if c > 1)
         if dup:
             raise ParameterError(f"variable names must be unique, repeated: {dup}")
         allowed_defuzz = _MAMDANI_DEFUZZ if self.kind == "mamdani" else _SUGENO_DEFUZZ
@@ -435,6 +457,15 @@ class FuzzySystem:
             self._check_output(v)
         for k, rule in enumerate(self.rules, start=1):
             self._check_rule(k, rule)
+        # canonical forms, so that equal systems compare equal whichever file they came from:
+        # NOT of a clause is the clause negated; a Mamdani output always lies in its range
+        # (a defuzzified set on the range), so its clip flag means nothing and is True
+        object.__setattr__(self, "rules", tuple(
+            Rule(_canonical(r.antecedent), r.consequents, r.weight) for r in self.rules))
+        if self.kind == "mamdani":
+            object.__setattr__(self, "outputs", tuple(
+                v if v.clip else Variable(v.name, v.range, v.terms, v.default, True)
+                for v in self.outputs))
 
     def _check_output(self, v: Variable) -> None:
         for t in v.terms:
