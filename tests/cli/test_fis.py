@@ -544,3 +544,26 @@ def test_smooth_curves_include_their_knots() -> None:
     assert {1.1, 1.7, 2.3, 6.7, 7.8, 8.9} <= set(np.round(p.x, 12).tolist())
     s = term_curve(Term("one", "singleton", (0.4,), 0.6), 0.0, 1.0)
     assert s.stem and s.x.tolist() == [0.4] and s.mu.tolist() == [0.6]
+
+
+def test_convert_states_the_changes_fis_needs_from_an_fll_file(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from tests.formats.fuzzylite_oracle import EXAMPLES
+
+    src = EXAMPLES / "mamdani" / "SimpleDimmer.fll"  # lock-range false, default nan
+    out = tmp_path / "sd.fis"
+    assert main(["fis", "convert", str(src), str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--clip-inputs" in err and err.count("\n") == 1 and not out.exists()
+    assert main(["fis", "convert", str(src), str(out), "--clip-inputs"]) == 2
+    assert "--no-rule-value middle" in capsys.readouterr().err and not out.exists()
+    assert main(["fis", "convert", str(src), str(out), "--clip-inputs", "--no-rule-value",
+                 "middle"]) == 0
+    err = capsys.readouterr().err
+    assert "Power = 0.5 (--no-rule-value)" in err
+    assert "inputs now clipped to their ranges: Ambient (--clip-inputs)" in err
+    a, b = read_system(src), read_system(out)
+    x = np.linspace(0.0, 1.0, 101)[:, None]  # inside the range the two agree exactly
+    assert np.array_equal(evaluate(a, x), evaluate(b, x), equal_nan=True)
+    assert main(["fis", "convert", str(src), str(out), "--no-rule-value", "inf"]) == 2
+    assert "finite number or 'middle'" in capsys.readouterr().err

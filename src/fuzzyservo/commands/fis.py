@@ -138,6 +138,15 @@ def register(subparsers: Any) -> None:
     )
     p.add_argument("input", type=Path, metavar="IN", help=f"the fuzzy system to read ({_EXTS})")
     p.add_argument("output", type=Path, metavar="OUT", help=f"the file to write ({_EXTS})")
+    p.add_argument("--clip-inputs", action="store_true",
+                   help="clip every input to its range (MATLAB's and FCL's only behaviour) "
+                        "where IN does not (FLL lock-range: false): a stated change of the "
+                        "values outside the ranges, which .fis and .fcl cannot express "
+                        "otherwise; listed on standard error")
+    p.add_argument("--no-rule-value", default=None, metavar="V|middle",
+                   help="give outputs without a value for when no rule fires (NaN default, "
+                        "fuzzylite's) the value V, or the middle of their range (MATLAB's "
+                        "behaviour, the only one .fis can hold); listed on standard error")
     p.set_defaults(handler=run_convert)
 
     p = sub.add_parser(
@@ -240,12 +249,43 @@ def run_convert(args: argparse.Namespace) -> int:
     format_of(args.input)
     check_output_path(args.output, option="OUT", inputs=(args.input,))
     system = read_system(args.input)
+    changed: list[str] = []
+    if args.clip_inputs:
+        changed = [v.name for v in system.inputs if not v.clip]
+        system = dataclasses.replace(system, inputs=tuple(
+            dataclasses.replace(v, clip=True) for v in system.inputs))
+    filled: list[str] = []
+    if args.no_rule_value is not None:
+        text_v = args.no_rule_value.strip().lower()
+        value = None
+        if text_v != "middle":
+            try:
+                value = float(text_v)
+            except ValueError:
+                value = math.nan
+            if not math.isfinite(value):
+                raise ParameterError(f"--no-rule-value must be a finite number or 'middle', "
+                                     f"got {args.no_rule_value!r}")
+        outs = []
+        for v in system.outputs:
+            if math.isnan(v.default):
+                d = 0.5 * (v.range[0] + v.range[1]) if value is None else value
+                filled.append(f"{v.name} = {d!r}")
+                v = dataclasses.replace(v, default=d)
+            outs.append(v)
+        system = dataclasses.replace(system, outputs=tuple(outs))
     try:
         text = dumps(system, fmt)
     except ParameterError as exc:
         raise ParameterError(f"cannot convert {str(args.input)!r} to .{fmt}: {exc}; nothing "
                              f"written") from None
     write_text_atomic(args.output, text)
+    if filled:
+        print(f"fuzzyservo: note: value when no rule fires set: {', '.join(filled)} "
+              f"(--no-rule-value)", file=sys.stderr)
+    if changed:
+        print(f"fuzzyservo: note: inputs now clipped to their ranges: {', '.join(changed)} "
+              f"(--clip-inputs)", file=sys.stderr)
     for note in system.notes:
         print(f"fuzzyservo: note: {str(args.input)!r}: {' '.join(note.split())}",
               file=sys.stderr)

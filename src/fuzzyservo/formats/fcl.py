@@ -1242,7 +1242,8 @@ def dump(system: FuzzySystem) -> str:
         if not v.clip:
             raise ParameterError(
                 f"FCL cannot hold input {v.name!r} without clipping: FCL has no flag for it "
-                f"and this reader clips inputs to their RANGE")
+                f"and this reader clips inputs to their RANGE (fis convert --clip-inputs "
+                f"clips them)")
     for v in system.outputs:
         _check_name("output", v.name)
     if system.kind == "sugeno" and system.defuzzifier == "wtaver" \

@@ -811,7 +811,7 @@ def _variable_lines(system: FuzzySystem, var: Variable, what: str, k: int) -> li
     if not is_out and not var.clip:
         raise ParameterError(
             f".fis cannot hold input {var.name!r} with clip=False (MATLAB clips inputs to "
-            f"their range)")
+            f"their range; fis convert --clip-inputs clips them)")
     if is_out:
         want_clip = system.kind == "mamdani"
         if var.clip != want_clip:
@@ -824,7 +824,8 @@ def _variable_lines(system: FuzzySystem, var: Variable, what: str, k: int) -> li
         if var.default != mid:
             raise ParameterError(
                 f".fis cannot hold the default {var.default!r} of output {var.name!r}: when no "
-                f"rule fires MATLAB returns the middle of the range, {mid!r}")
+                f"rule fires MATLAB returns the middle of the range, {mid!r} (fis convert "
+                f"--no-rule-value middle sets it)")
     head = "Output" if is_out else "Input"
     lines = [f"[{head}{k}]", f"Name='{var.name}'", f"Range=[{fmt_float(lo)} {fmt_float(hi)}]",
              f"NumMFs={len(var.terms)}"]
