@@ -32,6 +32,14 @@ oracles:
 	@command -v fuzzylite >/dev/null 2>&1 || $(APT_INSTALL) fuzzylite \
 	  || { $(SUDO) apt-get update -q && $(APT_INSTALL) fuzzylite; }
 
+# Optional: Octave's fuzzy-logic-toolkit reads and evaluates our exported .fis files (about
+# 270 MB installed, so not part of `make test`).
+crosscheck: $(STAMP)
+	@command -v octave >/dev/null 2>&1 && [ -n "$$(ls -d /usr/share/octave/packages/fuzzy-logic-toolkit* 2>/dev/null)" ] \
+	  || $(APT_INSTALL) octave octave-fuzzy-logic-toolkit \
+	  || { $(SUDO) apt-get update -q && $(APT_INSTALL) octave octave-fuzzy-logic-toolkit; }
+	$(BIN)/python benchmarks/crosscheck_octave.py
+
 reproduce: $(STAMP)
 	$(BIN)/fuzzyservo reproduce --out results/paper
 
