@@ -160,6 +160,38 @@ def _surface_alpha(d: Path, out: str) -> None:
     assert all(1 / 18 - 1e-12 <= float(r["value"]) <= 17 / 18 + 1e-12 for r in rows)
 
 
+def _fis_info(d: Path, out: str) -> None:
+    assert "rules (49):" in out and "and:          min" in out
+    assert "1. if e is NB and de is NB then du is NB" in out
+
+
+def _fis_convert(d: Path, out: str) -> None:
+    from fuzzyservo.formats import read_system
+    from fuzzyservo.paper import paper_fuzzy_system
+
+    assert read_system(d / "du.fis") == paper_fuzzy_system("du")  # every value kept
+
+
+def _fis_eval(d: Path, out: str) -> None:
+    with (d / "du3.csv").open() as fh:
+        rows = {(float(r["e"]), float(r["de"])): float(r["du"]) for r in csv.DictReader(fh)}
+    assert len(rows) == 9
+    # "±8/9 at the corners where e and Δe agree": exact up to rounding
+    assert rows[(1.0, 1.0)] == pytest.approx(8 / 9, abs=1e-15)
+    assert rows[(-1.0, -1.0)] == pytest.approx(-8 / 9, abs=1e-15)
+
+
+def _fis_show(d: Path, out: str) -> None:
+    assert (d / "du_fis.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def _simulate_du_file(d: Path, out: str) -> None:
+    m = printed_metrics(out)
+    # "the same rise time (0.509 s), settling time (0.805 s) and overshoot (0.97 %)"
+    assert (m["rise_time"], m["settling_time"], round(m["overshoot"], 2)) == (0.509, 0.805,
+                                                                              0.97)
+
+
 def _tune_pid(d: Path, out: str) -> None:
     t = read_gains_toml(d / "pid.toml")
     assert t.controller == "pid" and t.feasible and t.metrics["overshoot"] <= 10.0
@@ -198,6 +230,11 @@ CHECKS: dict[str, Check] = {
     "--plant small-signal --open-loop": _open_loop_small_signal,
     "fuzzyservo surface du": _surface_du,
     "fuzzyservo surface alpha": _surface_alpha,
+    "fuzzyservo fis info src/fuzzyservo/data/systems/paper-du.fcl": _fis_info,
+    "fuzzyservo fis convert src/fuzzyservo/data/systems/paper-du.fcl du.fis": _fis_convert,
+    "fuzzyservo fis eval du.fis --grid 3": _fis_eval,
+    "fuzzyservo fis show du.fis": _fis_show,
+    "--du-system du.fis": _simulate_du_file,
     "fuzzyservo tune --controller pid --plant linear": _tune_pid,
     "fuzzyservo simulate --gains pid.toml --metrics": _simulate_pid_file,
     "fuzzyservo tune --controller stfpi": _tune_stfpi,
