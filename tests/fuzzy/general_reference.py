@@ -12,10 +12,11 @@ no code with the evaluator:
   integrated exactly. Singleton outputs (COGS) and Sugeno outputs are exact sums.
 - :func:`mp_outputs`: mpmath at 30 digits for any system (smooth terms, probabilistic-sum
   aggregation): the aggregate is split at the terms' parameters and at the points where an
-  implied set meets its clip height, the largest implied set changes or a bounded sum reaches
-  1 (a fine scan, each change bisected to 30 digits), and integrated piece by piece with
-  ``mpmath.quad`` (its error estimate is checked); the maxima by a dense search refined by
-  golden section.
+  implied set meets its clip height, the largest implied set changes, a bounded sum reaches
+  1 or a dsigmoid's sigmoids cross (a fine scan, each change bisected to 30 digits), and
+  integrated piece by piece with ``mpmath.quad`` (a piece is halved until the quadrature's
+  error estimate is below 1e-22 of the range, so a missed bend costs time, not accuracy); the
+  maxima by a dense search refined by golden section.
 
 Each output's true value is returned as an interval ``(lo, hi)`` (equal ends unless the value is
 not unique: a bisector that falls in a gap of zero membership may be any point of the gap), or
@@ -560,20 +561,31 @@ class MpAggregate:
             if self.impl == "min" else ()
         arg = max(range(len(vals)), key=lambda i: vals[i]) if self.agg == "max" else -1
         sat = mpmath.fsum(vals) >= 1 if self.agg == "bounded_sum" else False
-        return clipped, arg, sat
+        # a dsigmoid bends where its two sigmoids cross (the absolute value)
+        bends = tuple(_sig(y, t.params[0], t.params[1]) >= _sig(y, t.params[3], t.params[2])
+                      for t in self.terms if t.shape == "dsigmoid")
+        return clipped, arg, sat, bends
+
+    def _quad(self, f: Callable[[mpmath.mpf], mpmath.mpf], u: mpmath.mpf, v: mpmath.mpf,
+              depth: int = 0) -> mpmath.mpf:
+        """mpmath.quad on [u, v], halved where its error estimate is above 1e-22 of the
+        range (a bend the scan missed ends in a piece small enough not to matter)."""
+        val, err = mpmath.quad(f, [u, v], error=True)
+        scale = (self.hi - self.lo) * (1 + abs(self.lo) + abs(self.hi))
+        if err <= mpf(10) ** -22 * scale * (v - u) / (self.hi - self.lo):
+            return val
+        if depth >= 60:
+            raise AssertionError(f"reference quadrature inaccurate on [{u}, {v}]: {err}")
+        m = (u + v) / 2
+        return self._quad(f, u, m, depth + 1) + self._quad(f, m, v, depth + 1)
 
     def integrals(self) -> tuple[mpmath.mpf, mpmath.mpf]:
-        """(area, first moment), each piece by mpmath.quad (error estimate checked)."""
+        """(area, first moment), piece by piece."""
         area = mpf(0)
         mom = mpf(0)
         for u, v in zip(self.cuts, self.cuts[1:], strict=False):
-            a, ea = mpmath.quad(self, [u, v], error=True)
-            m, em = mpmath.quad(lambda y: y * self(y), [u, v], error=True)
-            scale = (self.hi - self.lo) * (1 + abs(self.lo) + abs(self.hi))
-            if ea > mpf(10) ** -22 * scale or em > mpf(10) ** -22 * scale:
-                raise AssertionError(f"reference quadrature inaccurate on [{u}, {v}]: {ea}")
-            area += a
-            mom += m
+            area += self._quad(self, u, v)
+            mom += self._quad(lambda y: y * self(y), u, v)
         return area, mom
 
     def bisector(self, area: mpmath.mpf) -> mpmath.mpf:
@@ -582,12 +594,12 @@ class MpAggregate:
         half = area / 2
         acc = mpf(0)
         for u, v in zip(self.cuts, self.cuts[1:], strict=False):
-            seg = mpmath.quad(self, [u, v])
+            seg = self._quad(self, u, v)
             if seg > 0 and acc + seg >= half:
                 a, b = u, v
                 t = (u + v) / 2
                 for _ in range(200):
-                    r = acc + mpmath.quad(self, [u, t]) - half
+                    r = acc + self._quad(self, u, t) - half
                     if r < 0:
                         a = t
                     else:
@@ -634,7 +646,7 @@ class MpAggregate:
                 m = (a + b) / 2
                 cand.append((m, self(m)))
         gmax = max(g for _, g in cand)
-        top = gmax * (1 - mpf(10) ** -12)
+        top = gmax * (1 - mpf(10) ** -25)  # ties at 30 digits: the exact maximum
         # plateaus: pieces whose samples all reach the maximum
         plen = mpf(0)
         pmom = mpf(0)
@@ -643,10 +655,22 @@ class MpAggregate:
             if all(self(y) >= top for y in ys):
                 plen += v - u
                 pmom += (v * v - u * u) / 2
-        pts: list[mpmath.mpf] = []
+        # maximising points: clusters of candidates closer than 1e-6 of the range are one
+        # point, a cut (a knot: a flat top like a steep bell's is only known to be there)
+        # if the cluster holds one, else its highest candidate
+        cuts = set(self.cuts)
+        clusters: list[list[tuple[mpmath.mpf, mpmath.mpf]]] = []
         for y, g in sorted(cand):
-            if g >= top and not (pts and y - pts[-1] < (self.hi - self.lo) * mpf(10) ** -9):
-                pts.append(y)
+            if g < top:
+                continue
+            if clusters and y - clusters[-1][-1][0] < (self.hi - self.lo) * mpf(10) ** -6:
+                clusters[-1].append((y, g))
+            else:
+                clusters.append([(y, g)])
+        pts = []
+        for cl in clusters:
+            at_cut = [y for y, _ in cl if y in cuts]
+            pts.append(at_cut[0] if at_cut else max(cl, key=lambda c: c[1])[0])
         if method == "som":
             return pts[0]
         if method == "lom":

@@ -207,3 +207,35 @@ def test_vertical_edge_within_rounding_of_another_vertex(defuzzifier: str) -> No
         system = FuzzySystem(inputs=(ONE_IN,), outputs=(out,), rules=rules,
                              implication=implication, defuzzifier=defuzzifier)
         assert_exact(system, [[0.3], [0.6], [0.0], [1.0]])
+
+
+TWO_GAUSS = FuzzySystem(
+    inputs=(ONE_IN,),
+    outputs=(Variable("y", (0.0, 10.0), (Term("a", "gaussian", (4.0, 1.0)),
+                                         Term("b", "gaussian", (7.0, 0.3)))),),
+    rules=(Rule(Is(0, 0), (Consequent(0, 0),), weight=0.5 / 0.55),
+           Rule(Is(0, 1), (Consequent(0, 1),))),
+    implication="product", aggregation="sum")
+
+
+@pytest.mark.parametrize("defuzzifier", ["mom", "som", "lom"])
+def test_smooth_maximum_between_two_knots_is_found(defuzzifier: str) -> None:
+    # The sum of two gaussians has a local maximum just inside each mean; between the knots 4
+    # and 7 a golden-section search found the one near 4, and the global maximum near 6.998
+    # (just left of the knot 7) was missed: 7.0 was returned.
+    system = dataclasses.replace(TWO_GAUSS, defuzzifier=defuzzifier)
+    assert_mp(system, [[0.55], [0.45]])
+
+
+@pytest.mark.parametrize("defuzzifier", ["mom", "som", "lom"])
+def test_smooth_maximum_is_located_beyond_float_resolution_of_its_value(defuzzifier: str
+                                                                      ) -> None:
+    # Near a smooth maximum g(x* + d) = g(x*) - k d^2 / 2, so comparisons of float values
+    # place x* only to about sqrt(2 eps g / k) ~ 1e-8 (1e-9 of this range); the derivative's
+    # zero is needed for 1e-10.
+    out = Variable("y", (0.0, 10.0), (Term("a", "gaussian", (4.0, 1.0)),
+                                      Term("b", "gaussian", (7.0, 1.0))))
+    system = dataclasses.replace(TWO_GAUSS, outputs=(out,), defuzzifier=defuzzifier,
+                                 rules=(Rule(Is(0, 0), (Consequent(0, 0),)),
+                                        Rule(Is(0, 1), (Consequent(0, 1),))))
+    assert_mp(system, [[0.55], [0.3]])

@@ -1103,6 +1103,85 @@ def _gk(a: float, b: float, c0: float, ints: IntArray, f: FloatArray, first: int
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
+def _golden_max(a: float, b: float, span: float, ints: IntArray, f: FloatArray, first: int,
+                n_items: int, lab: IntArray, h: FloatArray) -> float:
+    """Golden-section search for the maximum of the aggregate on [a, b]."""
+    invphi = (math.sqrt(5.0) - 1.0) / 2.0
+    x1 = b - invphi * (b - a)
+    x2 = a + invphi * (b - a)
+    f1 = _g(x1, ints, f, first, n_items, lab, h)
+    f2 = _g(x2, ints, f, first, n_items, lab, h)
+    aa = a
+    bb = b
+    for _ in range(200):
+        if bb - aa <= 1e-15 * span:
+            break
+        if f1 < f2:
+            aa = x1
+            x1 = x2
+            f1 = f2
+            x2 = aa + invphi * (bb - aa)
+            f2 = _g(x2, ints, f, first, n_items, lab, h)
+        else:
+            bb = x2
+            x2 = x1
+            f2 = f1
+            x1 = bb - invphi * (bb - aa)
+            f1 = _g(x1, ints, f, first, n_items, lab, h)
+    return 0.5 * (aa + bb)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _refine_max(x: float, a: float, b: float, ints: IntArray, f: FloatArray, first: int,
+                n_items: int, lab: IntArray, h: FloatArray) -> float:
+    """Newton steps on the derivative (central differences, Richardson-extrapolated) from a
+    maximum x found in [a, b] by comparing values. A quadratic maximum moves to the
+    derivative's zero; at a kink, on a plateau or on a flat top x is kept (as it is when a step
+    lowers the value)."""
+    gx = _g(x, ints, f, first, n_items, lab, h)
+    if not gx > 0.0:
+        return x
+    # the step: from 1e-2 of the bracket down until the second difference is the same at half
+    # the step (the quadratic part of a smooth maximum); a kink (it doubles) or a flat top
+    # like a steep bell's (it grows by 2^(p-2)) never gets there before rounding dominates:
+    # keep x
+    d = 1e-2 * (b - a)
+    d2 = 0.0
+    quadratic = False
+    for _ in range(12):
+        d2 = (_g(x + d, ints, f, first, n_items, lab, h) - 2.0 * gx
+              + _g(x - d, ints, f, first, n_items, lab, h)) / (d * d)
+        d2h = (_g(x + 0.5 * d, ints, f, first, n_items, lab, h) - 2.0 * gx
+               + _g(x - 0.5 * d, ints, f, first, n_items, lab, h)) / (0.25 * d * d)
+        if not (d2 < 0.0 and d2h < 0.0) or 16e-16 * gx / (0.25 * d * d) > 1e-3 * -d2h:
+            return x
+        if abs(d2h - d2) <= 1e-2 * -d2:
+            quadratic = True
+            break
+        d *= 0.1
+    if not quadratic:
+        return x
+    xn = x
+    converged = False
+    for _ in range(8):
+        g1 = (_g(xn + d, ints, f, first, n_items, lab, h)
+              - _g(xn - d, ints, f, first, n_items, lab, h)) / (2.0 * d)
+        g2 = (_g(xn + 0.5 * d, ints, f, first, n_items, lab, h)
+              - _g(xn - 0.5 * d, ints, f, first, n_items, lab, h)) / d
+        step = -((4.0 * g2 - g1) / 3.0) / d2
+        xn += step
+        if abs(step) <= 1e-3 * d:
+            converged = True
+            break
+    if not converged:
+        return x
+    xn = min(max(xn, a), b)  # past the bracket: the maximum is at its end (a cut) or beyond
+    if _g(xn, ints, f, first, n_items, lab, h) < gx - 4e-16 * gx:
+        return x
+    return xn
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, h: FloatArray,
             mode: int, xgk: FloatArray, wgk: FloatArray, wg: FloatArray) -> float:
     """Defuzzified smooth aggregate of output o (NaN if empty)."""
@@ -1234,46 +1313,49 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
                 return 0.5 * (ta + tb)
             cum += acc_area[i]
         return hi
-    # maxima: the largest value over cut points and a golden-section search in every piece
+    # maxima: the cut points, and in every piece each local maximum of a scan of SCAN_CELLS
+    # cells (a sum of terms may have several between two knots), located by golden section
+    # and refined to the zero of the derivative (values alone place it to ~1e-8 only)
     gmax = 0.0
-    nb = nc
-    cand = np.empty(3 * nb)
-    cv = np.empty(3 * nb)
+    cap = (nc + 1) * (SCAN_CELLS + 3)
+    cand = np.empty(cap)
+    cv = np.empty(cap)
+    ys = np.empty(SCAN_CELLS + 1)
+    gs = np.empty(SCAN_CELLS + 1)
     ncand = 0
-    invphi = (math.sqrt(5.0) - 1.0) / 2.0
     for k in range(nc - 1):
         a = cuts[k]
         b = cuts[k + 1]
         if not b > a:
             continue
-        for y in (a, b):
-            cand[ncand] = y
-            cv[ncand] = _g(y, ints, f, first, n_items, lab, h)
+        for s in range(SCAN_CELLS + 1):
+            ys[s] = a + (b - a) * s / SCAN_CELLS if s < SCAN_CELLS else b
+            gs[s] = _g(ys[s], ints, f, first, n_items, lab, h)
+        for s in (0, SCAN_CELLS):
+            cand[ncand] = ys[s]
+            cv[ncand] = gs[s]
             ncand += 1
-        x1 = b - invphi * (b - a)
-        x2 = a + invphi * (b - a)
-        f1 = _g(x1, ints, f, first, n_items, lab, h)
-        f2 = _g(x2, ints, f, first, n_items, lab, h)
-        aa = a
-        bb = b
-        for _ in range(200):
-            if bb - aa <= 1e-15 * span:
-                break
-            if f1 < f2:
-                aa = x1
-                x1 = x2
-                f1 = f2
-                x2 = aa + invphi * (bb - aa)
-                f2 = _g(x2, ints, f, first, n_items, lab, h)
-            else:
-                bb = x2
-                x2 = x1
-                f2 = f1
-                x1 = bb - invphi * (bb - aa)
-                f1 = _g(x1, ints, f, first, n_items, lab, h)
-        cand[ncand] = 0.5 * (aa + bb)
-        cv[ncand] = _g(cand[ncand], ints, f, first, n_items, lab, h)
-        ncand += 1
+        for s in range(SCAN_CELLS + 1):
+            left = gs[s - 1] if s > 0 else -1.0
+            right = gs[s + 1] if s < SCAN_CELLS else -1.0
+            if gs[s] < left or gs[s] < right or (left == gs[s] and gs[s] == right):
+                continue
+            aa = ys[max(s - 1, 0)]
+            bb = ys[min(s + 1, SCAN_CELLS)]
+            xm = _golden_max(aa, bb, span, ints, f, first, n_items, lab, h)
+            xr = _refine_max(xm, aa, bb, ints, f, first, n_items, lab, h)
+            if xr == xm:
+                # not a smooth maximum (a kink, a plateau's edge, a flat top like a steep
+                # bell's): values tie over a band around it, and it is exact only at a cut
+                gx = _g(xm, ints, f, first, n_items, lab, h)
+                if s <= 1 and gs[0] >= gx - 1e-12 * gx:
+                    xr = a
+                elif s >= SCAN_CELLS - 1 and gs[SCAN_CELLS] >= gx - 1e-12 * gx:
+                    xr = b
+            xm = xr
+            cand[ncand] = xm
+            cv[ncand] = _g(xm, ints, f, first, n_items, lab, h)
+            ncand += 1
     for i in range(ncand):
         gmax = max(gmax, cv[i])
     tolm = 1e-12 * gmax
