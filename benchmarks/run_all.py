@@ -12,7 +12,8 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["fuzzy_engine.py", "plant.py", "closed_loop.py", "tuning.py", "csv_write.py"]
+ORDER = ["fuzzy_engine.py", "fuzzy_files.py", "plant.py", "closed_loop.py", "tuning.py",
+         "csv_write.py"]
 
 
 def main() -> int:
@@ -27,7 +28,7 @@ def main() -> int:
             print(f"== {name}: not present, skipped")
             continue
         cmd = [sys.executable, str(script)]
-        if name == "fuzzy_engine.py" and args.fuzzylite_python:
+        if name in ("fuzzy_engine.py", "fuzzy_files.py") and args.fuzzylite_python:
             cmd += ["--fuzzylite-python", args.fuzzylite_python]
         print(f"== {name}", flush=True)
         status |= subprocess.call(cmd)
