@@ -209,6 +209,22 @@ def test_vertical_edge_within_rounding_of_another_vertex(defuzzifier: str) -> No
         assert_exact(system, [[0.3], [0.6], [0.0], [1.0]])
 
 
+@pytest.mark.parametrize("defuzzifier", ["centroid", "bisector", "mom", "som", "lom"])
+@pytest.mark.parametrize("strength", [1e-4, 1e-8, 1e-12, 1e-15])
+def test_weakly_fired_plateau_is_flat(defuzzifier: str, strength: float) -> None:
+    # Under min implication a plateau ends where the term's line c + m y meets the clip
+    # height w; c + m y there carries a rounding error of eps |c|, which is a relative error
+    # eps |c| / w of the plateau's end height: the plateau tilted, and a weakly fired set's
+    # centroid was off by 1e-11 of the range at w = 1e-8 (4e-4 at w = 1e-15).
+    ramp_in = Variable("x", (0.0, 1.0), (Term("r", "ramp", (0.0, 1.0)),))
+    out = Variable("y", (0.0, 0.5), (Term("o", "trapezoid", (0.0, 0.0, 0.0, 0.125), 0.5),
+                                     Term("p", "triangle", (0.25, 0.375, 0.5))))
+    system = FuzzySystem(inputs=(ramp_in,), outputs=(out,), defuzzifier=defuzzifier,
+                         rules=(Rule(Is(0, 0), (Consequent(0, 0),)),
+                                Rule(Is(0, 0), (Consequent(0, 1),), weight=0.25)))
+    assert_exact(system, [[strength]])
+
+
 TWO_GAUSS = FuzzySystem(
     inputs=(ONE_IN,),
     outputs=(Variable("y", (0.0, 10.0), (Term("a", "gaussian", (4.0, 1.0)),

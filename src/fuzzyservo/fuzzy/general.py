@@ -750,6 +750,10 @@ def _agg_lines(y: float, na: int, c: FloatArray, m: FloatArray, hh: FloatArray, 
         line = c[i] + m[i] * y
         if line < 0.0:
             line = 0.0
+        if impl == 0 and abs(line - hh[i]) <= 1e-15 * (abs(c[i]) + abs(m[i] * y)):
+            # the clip crossing: c + m y is hh up to its rounding (eps |c|, a large relative
+            # error when hh is small), so the plateau it ends stays flat
+            line = hh[i]
         fv = min(hh[i], line) if impl == 0 else hh[i] * line
         total += fv
         if fv > best:
