@@ -1,0 +1,205 @@
+"""Fuzzing the three readers and writers together (issue: "parsers that fail well").
+
+The per-format tests (test_fis.py, test_fcl.py, test_fll.py) fuzz each reader with its own
+small mutations; these properties are the cross-format ones, on the generators of
+``tests/formats/strategies.py`` (shared with ``benchmarks/fuzz_formats.py``, which runs 10^5
+cases and more):
+
+1. any text (random, decoded random bytes, and mostly mutated valid files: the shipped
+   systems, the format tests' data and writer output of random systems) parses, or raises
+   exactly ``FormatError`` on one line ``f.FMT:LINE:COL: what``, located inside the text;
+   nothing in it is run as code (an audit hook sees no ``compile``, ``exec`` or process
+   start, the payloads' marker file never appears); no case takes more than a few seconds;
+2. a random valid system is refused by a writer with a one-line ParameterError naming the
+   format, or written to a text that reads back equal (``.fis``: with each rule's clauses
+   in input order, the writer's documented layout) and writes again to the same text; a
+   system restricted to what a format says it holds is never refused;
+3. a system read from one format and written as another reads back equal, or is refused;
+4. the evaluator gives finite outputs (NaN only for an output whose default is NaN) on
+   systems read from mutated files, at points inside the ranges.
+
+Hypothesis runs derandomised (the same examples on every run) without a deadline; the
+``@example`` cases and the plain tests below them are inputs the fuzzers found.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from fuzzyservo.formats.io import dumps, loads
+from fuzzyservo.fuzzy.system import Consequent, FuzzySystem, Is, Rule, Term, Variable
+from tests.formats.strategies import (
+    CODE_PAYLOADS,
+    FORMATS,
+    MARKER,
+    SEED_FILES,
+    Broken,
+    CodeWatch,
+    DrawRand,
+    EvalWorker,
+    check_parse,
+    check_round_trip,
+    mutate,
+    name_spans,
+    number_spans,
+    points,
+    random_system,
+    systems,
+    texts,
+)
+
+#: Longest a single case may take [s]: a text of a few kB parses in milliseconds; the
+#: margin covers a loaded machine, not a quadratic reader.
+SLOW = 5.0
+FUZZ = settings(derandomize=True, deadline=None, database=None,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
+                                       HealthCheck.large_base_example])
+
+WATCH = CodeWatch()
+
+
+def _watched_parse(text: str, fmt: str) -> FuzzySystem | None:
+    """``check_parse`` with the code watch on and the time bounded."""
+    MARKER.unlink(missing_ok=True)
+    start = time.perf_counter()
+    WATCH.start()
+    try:
+        s = check_parse(text, fmt)
+    finally:
+        try:
+            WATCH.stop()
+        except Broken as exc:
+            pytest.fail(f"{exc.kind} while reading: {exc.detail}")
+    elapsed = time.perf_counter() - start
+    assert not MARKER.exists(), "a code payload was run"
+    assert elapsed < SLOW, f"reading took {elapsed:.1f} s"
+    return s
+
+
+@pytest.fixture(scope="module")
+def evaluator() -> Iterator[EvalWorker]:
+    worker = EvalWorker(timeout=30.0)
+    yield worker
+    worker.close()
+
+
+# -------------------------------------------------------------------------- 1. any text
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+@settings(FUZZ, max_examples=300)
+@given(data=st.data())
+def test_any_text_parses_or_fails_on_one_located_line(fmt: str, data: st.DataObject) -> None:
+    text = data.draw(texts(fmt), label="text")
+    _watched_parse(text, fmt)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_seed_files_parse(fmt: str) -> None:
+    assert SEED_FILES[fmt]
+    for text in SEED_FILES[fmt]:
+        assert isinstance(_watched_parse(text, fmt), FuzzySystem)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_code_in_a_file_is_never_run(fmt: str) -> None:
+    # every payload in place of every name and every number of one seed file, and appended
+    base = SEED_FILES[fmt][0]
+    spans = name_spans(base)[:40] + number_spans(base)[:40] + [(len(base), len(base))]
+    tried = 0
+    for payload in CODE_PAYLOADS:
+        for a, b in spans:
+            text = base[:a] + payload + base[b:]
+            assert _watched_parse(text, fmt) is None  # nothing of it is a valid name/number
+            tried += 1
+    assert tried >= 200
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_deep_nesting_and_huge_numbers_fail_well(fmt: str) -> None:
+    base = SEED_FILES[fmt][0]
+    for piece in ("(" * 100_000, "not " * 20_000, "NOT " * 20_000, "[" * 50_000,
+                  "9" * 100_000, "1e" + "9" * 5000, "-" * 10_000 + "1"):
+        for at in (0, len(base) // 3, 2 * len(base) // 3, len(base)):
+            _watched_parse(base[:at] + piece + base[at:], fmt)
+
+
+# -------------------------------------------------------------------------- 2. round trips
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+@settings(FUZZ, max_examples=150)
+@given(s=systems())
+def test_any_system_round_trips_or_is_refused_by_name(fmt: str, s: FuzzySystem) -> None:
+    check_round_trip(s, fmt)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+@settings(FUZZ, max_examples=100)
+@given(data=st.data())
+def test_systems_a_format_holds_are_written_exactly(fmt: str, data: st.DataObject) -> None:
+    s = data.draw(systems(fit=fmt), label="system")
+    assert check_round_trip(s, fmt) is not None, "refused"
+
+
+def _input_default_system(default: float) -> FuzzySystem:
+    x = Variable("x", (0.0, 1.0), (Term("a", "triangle", (0.0, 0.5, 1.0)),), default=default)
+    y = Variable("y", (0.0, 1.0), (Term("b", "triangle", (0.0, 0.5, 1.0)),), default=0.5)
+    return FuzzySystem(inputs=(x,), outputs=(y,), rules=(Rule(Is(0, 0), (Consequent(0, 0),)),))
+
+
+# -------------------------------------------------------------------------- 3. conversions
+
+
+@pytest.mark.parametrize("source", FORMATS)
+@settings(FUZZ, max_examples=80)
+@given(data=st.data())
+def test_conversions_are_exact_or_refused(source: str, data: st.DataObject) -> None:
+    s = data.draw(systems(fit=source), label="system")
+    read = loads(dumps(s, source), source, f"a.{source}")
+    for target in FORMATS:
+        check_round_trip(read, target)
+
+
+# -------------------------------------------------------------------------- 4. evaluation
+
+
+@st.composite
+def parsed_systems(draw: st.DrawFn, fmt: str) -> FuzzySystem:
+    """A system read from a mutated file (the first of ten mutants that parses; else the
+    unmutated file)."""
+    r = DrawRand(draw)
+    s = random_system(r, fmt)
+    text = dumps(s, fmt)
+    for _ in range(10):
+        read = check_parse(mutate(r, text, fmt), fmt)
+        if read is not None:
+            return read
+    return loads(text, fmt)
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+@settings(FUZZ, max_examples=60)
+@given(data=st.data())
+def test_parsed_mutants_evaluate_to_finite_values(fmt: str, data: st.DataObject,
+                                                   evaluator: EvalWorker) -> None:
+    s = data.draw(parsed_systems(fmt), label="system")
+    x = data.draw(points(s), label="points")
+    try:
+        evaluator(s, x)
+    except Broken as exc:
+        pytest.fail(f"{exc.kind}: {exc.detail}")
+
+
+def test_evaluator_worker_reports_a_crash_as_a_failure(evaluator: EvalWorker) -> None:
+    s = _input_default_system(math.nan)
+    evaluator(s, np.array([[0.5]]))  # a healthy call
+    with pytest.raises(Broken, match="not finite|died|Error"):
+        evaluator(s, np.array([[math.inf]]))  # the evaluator's InputError, reported
