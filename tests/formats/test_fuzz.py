@@ -33,6 +33,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from fuzzyservo.errors import ParameterError
 from fuzzyservo.formats.io import dumps, loads
 from fuzzyservo.fuzzy.system import Consequent, FuzzySystem, Is, Rule, Term, Variable
 from tests.formats.strategies import (
@@ -153,6 +154,15 @@ def _input_default_system(default: float) -> FuzzySystem:
     x = Variable("x", (0.0, 1.0), (Term("a", "triangle", (0.0, 0.5, 1.0)),), default=default)
     y = Variable("y", (0.0, 1.0), (Term("b", "triangle", (0.0, 0.5, 1.0)),), default=0.5)
     return FuzzySystem(inputs=(x,), outputs=(y,), rules=(Rule(Is(0, 0), (Consequent(0, 0),)),))
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_an_input_default_is_refused_not_dropped(fmt: str) -> None:
+    # found by the fuzzer: .fis and FCL wrote an input's default nowhere, so it read back NaN
+    s = _input_default_system(0.25)
+    with pytest.raises(ParameterError, match=r"default 0\.25 of input 'x'"):
+        dumps(s, fmt)
+    assert check_round_trip(_input_default_system(math.nan), fmt) is not None
 
 
 # -------------------------------------------------------------------------- 3. conversions

@@ -84,11 +84,11 @@ the height as fuzzylite's trailing parameter. A NaN default is written by leavin
 out. Numbers are written exactly (:func:`~fuzzyservo.formats._text.fmt_float`).
 
 :func:`dump` raises ParameterError for what FCL (as fuzzylite reads it) cannot hold: an input
-that is not clipped, a :class:`~fuzzyservo.fuzzy.system.Not` of an expression (fuzzylite reads
-only ``is not``), a singleton or Sugeno term with a height below 1, a maximum method (LM, RM,
-MM) over singleton terms, a weighted-average Sugeno system without any output term (nothing
-would mark it as Sugeno), names that are FCL keywords or fuzzylite hedges, and names FCL
-cannot spell.
+that is not clipped or has a default other than NaN, a :class:`~fuzzyservo.fuzzy.system.Not` of
+an expression (fuzzylite reads only ``is not``), a singleton or Sugeno term with a height below
+1, a maximum method (LM, RM, MM) over singleton terms, a weighted-average Sugeno system without
+any output term (nothing would mark it as Sugeno), names that are FCL keywords or fuzzylite
+hedges, and names FCL cannot spell.
 
 fuzzylite's known differences from this reading (documented, not refused): ``COGS`` over
 terms that several rules conclude sums the rules' degrees whatever ``ACCU`` says (IEC and this
@@ -1239,6 +1239,9 @@ def dump(system: FuzzySystem) -> str:
     _check_name("system", system.name)
     for v in system.inputs:
         _check_name("input", v.name)
+        if not math.isnan(v.default):
+            raise ParameterError(f"FCL cannot hold the default {fmt_float(v.default)} of input "
+                                 f"{v.name!r} (inputs have no default)")
         if not v.clip:
             raise ParameterError(
                 f"FCL cannot hold input {v.name!r} without clipping: FCL has no flag for it "

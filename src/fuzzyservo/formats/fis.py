@@ -67,7 +67,8 @@ writer writes only what MATLAB reads: ``ParameterError`` names anything else:
 - term shapes ``ramp``, ``rectangle``, ``discrete`` (fuzzylite's ``rampmf`` etc. are not
   MATLAB's) and ``singleton``; a term height other than 1;
 - aggregation ``bounded_sum``;
-- an input with ``clip=False``; a Mamdani output with ``clip=False``; a Sugeno output with
+- an input with ``clip=False`` or a default other than NaN (an input has none in a .fis file);
+  a Mamdani output with ``clip=False``; a Sugeno output with
   ``clip=True`` (MATLAB does not clamp it);
 - an output default other than the middle of its range (NaN included);
 - an antecedent other than one clause or a flat AND / OR of clauses (``Is``, negated or not,
@@ -808,6 +809,10 @@ def _term_line(system: FuzzySystem, var: Variable, what: str, k: int, t: Term) -
 def _variable_lines(system: FuzzySystem, var: Variable, what: str, k: int) -> list[str]:
     lo, hi = var.range
     is_out = what == "output"
+    if not is_out and not math.isnan(var.default):
+        raise ParameterError(
+            f".fis cannot hold the default {fmt_float(var.default)} of input {var.name!r} "
+            f"(inputs have no default)")
     if not is_out and not var.clip:
         raise ParameterError(
             f".fis cannot hold input {var.name!r} with clip=False (MATLAB clips inputs to "
