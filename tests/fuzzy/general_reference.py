@@ -423,34 +423,55 @@ def _smf(x: mpmath.mpf, a: float, b: float) -> mpmath.mpf:
 
 def mp_mu(term: Term, x: mpmath.mpf) -> mpmath.mpf:
     """Membership of any Mamdani term at x in mpmath (height applied)."""
-    s, p, h = term.shape, term.params, mpf(term.height)
+    return mp_term(term)(x)
+
+
+def mp_term(term: Term) -> Callable[[mpmath.mpf], mpmath.mpf]:
+    """The membership function of a term in mpmath, its parameters converted once (at the
+    current precision; floats are exact in mpf)."""
+    s, h = term.shape, mpf(term.height)
     if s in PL_SHAPES:
-        # exact where x is a float or a Fraction-representable point; else through the
-        # term's piecewise-linear definition evaluated in mpf
-        return _pl_mu_mp(term, x)
+        return lambda x: _pl_mu_mp(term, x)
+    p = [mpf(v) for v in term.params]
+    exp = mpmath.exp
+
+    def sig(x: mpmath.mpf, c: mpmath.mpf, a: mpmath.mpf) -> mpmath.mpf:
+        return 1 / (1 + exp(-a * (x - c)))
+
+    def smf(x: mpmath.mpf, a: mpmath.mpf, b: mpmath.mpf) -> mpmath.mpf:
+        if x <= a:
+            return mpf(0)
+        if x >= b:
+            return mpf(1)
+        if x <= (a + b) / 2:
+            return 2 * ((x - a) / (b - a)) ** 2
+        return 1 - 2 * ((x - b) / (b - a)) ** 2
+
     if s == "gaussian":
-        return h * mpmath.exp(-((x - mpf(p[0])) / mpf(p[1])) ** 2 / 2)
+        return lambda x: h * exp(-((x - p[0]) / p[1]) ** 2 / 2)
     if s == "gaussian2":
-        v = mpf(1)
-        if x < p[0]:
-            v *= mpmath.exp(-((x - mpf(p[0])) / mpf(p[1])) ** 2 / 2)
-        if x > p[2]:
-            v *= mpmath.exp(-((x - mpf(p[2])) / mpf(p[3])) ** 2 / 2)
-        return h * v
+        def g2(x: mpmath.mpf) -> mpmath.mpf:
+            v = mpf(1)
+            if x < p[0]:
+                v *= exp(-((x - p[0]) / p[1]) ** 2 / 2)
+            if x > p[2]:
+                v *= exp(-((x - p[2]) / p[3]) ** 2 / 2)
+            return h * v
+        return g2
     if s == "bell":
-        return h / (1 + abs((x - mpf(p[0])) / mpf(p[1])) ** (2 * mpf(p[2])))
+        return lambda x: h / (1 + abs((x - p[0]) / p[1]) ** (2 * p[2]))
     if s == "sigmoid":
-        return h * _sig(x, p[0], p[1])
+        return lambda x: h * sig(x, p[0], p[1])
     if s == "dsigmoid":
-        return h * abs(_sig(x, p[0], p[1]) - _sig(x, p[3], p[2]))
+        return lambda x: h * abs(sig(x, p[0], p[1]) - sig(x, p[3], p[2]))
     if s == "psigmoid":
-        return h * _sig(x, p[0], p[1]) * _sig(x, p[3], p[2])
+        return lambda x: h * sig(x, p[0], p[1]) * sig(x, p[3], p[2])
     if s == "s":
-        return h * _smf(x, p[0], p[1])
+        return lambda x: h * smf(x, p[0], p[1])
     if s == "z":
-        return h * (1 - _smf(x, p[0], p[1]))
+        return lambda x: h * (1 - smf(x, p[0], p[1]))
     if s == "pi":
-        return h * _smf(x, p[0], p[1]) * (1 - _smf(x, p[2], p[3]))
+        return lambda x: h * smf(x, p[0], p[1]) * (1 - smf(x, p[2], p[3]))
     raise ValueError(f"no mpmath membership for {s}")
 
 
@@ -509,10 +530,12 @@ class MpAggregate:
     """The aggregate of one output in mpmath, with its pieces located."""
 
     def __init__(self, system: FuzzySystem, var: Variable, items: list[tuple[int, object]],
-                 scan: int = 400) -> None:
+                 scan: int = 200) -> None:
+        self.eps = mpf(10) ** -(mpmath.mp.dps - 2)  # a little above the working precision
         self.impl = system.implication
         self.agg = system.aggregation
         self.terms = [var.terms[j] for j, _ in items]
+        self.mus = [mp_term(t) for t in self.terms]
         self.ws = [mpf(w) for _, w in items]
         self.lo, self.hi = mpf(var.range[0]), mpf(var.range[1])
         knots = {self.lo, self.hi}
@@ -521,14 +544,14 @@ class MpAggregate:
         ks = sorted(knots)
         cuts = set(ks)
         for p, q in zip(ks, ks[1:], strict=False):
-            prev_y = p + (q - p) * mpf(10) ** -20
+            prev_y = p + (q - p) * self.eps
             prev = self.signature(prev_y)
             for i in range(1, scan + 1):
-                y = p + (q - p) * i / scan if i < scan else q - (q - p) * mpf(10) ** -20
+                y = p + (q - p) * i / scan if i < scan else q - (q - p) * self.eps
                 sig = self.signature(y)
                 if sig != prev:
                     a, b = prev_y, y
-                    while b - a > (self.hi - self.lo) * mpf(10) ** -28:
+                    while b - a > (self.hi - self.lo) * self.eps:
                         m = (a + b) / 2
                         if self.signature(m) == prev:
                             a = m
@@ -539,8 +562,8 @@ class MpAggregate:
         self.cuts = sorted(cuts)
 
     def parts(self, y: mpmath.mpf) -> list[mpmath.mpf]:
-        return [min(w, mp_mu(t, y)) if self.impl == "min" else w * mp_mu(t, y)
-                for t, w in zip(self.terms, self.ws, strict=True)]
+        return [min(w, mu(y)) if self.impl == "min" else w * mu(y)
+                for mu, w in zip(self.mus, self.ws, strict=True)]
 
     def __call__(self, y: mpmath.mpf) -> mpmath.mpf:
         vals = self.parts(y)
@@ -555,8 +578,9 @@ class MpAggregate:
         return min(mpf(1), total) if self.agg == "bounded_sum" else total
 
     def signature(self, y: mpmath.mpf) -> tuple[object, ...]:
-        mus = [mp_mu(t, y) for t in self.terms]
-        vals = self.parts(y)
+        mus = [mu(y) for mu in self.mus]
+        vals = [min(w, m) if self.impl == "min" else w * m
+                for m, w in zip(mus, self.ws, strict=True)]
         clipped = tuple(m >= w for m, w in zip(mus, self.ws, strict=True)) \
             if self.impl == "min" else ()
         arg = max(range(len(vals)), key=lambda i: vals[i]) if self.agg == "max" else -1
@@ -568,11 +592,12 @@ class MpAggregate:
 
     def _quad(self, f: Callable[[mpmath.mpf], mpmath.mpf], u: mpmath.mpf, v: mpmath.mpf,
               depth: int = 0) -> mpmath.mpf:
-        """mpmath.quad on [u, v], halved where its error estimate is above 1e-22 of the
-        range (a bend the scan missed ends in a piece small enough not to matter)."""
-        val, err = mpmath.quad(f, [u, v], error=True)
+        """mpmath.quad on [u, v], halved while its error estimate is above 1e4 eps of the range
+        (per unit length, and at least 1e-2 eps: a bend the scan missed ends in a piece small
+        enough not to matter); eps is 100 units of the working precision."""
+        val, err = mpmath.quad(f, [u, v], error=True, method="gauss-legendre")
         scale = (self.hi - self.lo) * (1 + abs(self.lo) + abs(self.hi))
-        if err <= mpf(10) ** -22 * scale * (v - u) / (self.hi - self.lo):
+        if err <= self.eps * 1e4 * scale * ((v - u) / (self.hi - self.lo) + 1e-6):
             return val
         if depth >= 60:
             raise AssertionError(f"reference quadrature inaccurate on [{u}, {v}]: {err}")
@@ -590,27 +615,30 @@ class MpAggregate:
 
     def bisector(self, area: mpmath.mpf) -> mpmath.mpf:
         """The t with integral(lo..t) = area / 2: safeguarded Newton inside the piece where
-        the running integral crosses half the area (the aggregate is smooth there)."""
+        the running integral crosses half the area (the aggregate is smooth there), the
+        running integral carried forward by the integrals over the steps."""
         half = area / 2
         acc = mpf(0)
+        tol = (self.hi - self.lo) * self.eps * 1e4
         for u, v in zip(self.cuts, self.cuts[1:], strict=False):
             seg = self._quad(self, u, v)
             if seg > 0 and acc + seg >= half:
                 a, b = u, v
-                t = (u + v) / 2
+                t, ft = u, acc  # ft = integral(lo..t)
                 for _ in range(200):
-                    r = acc + self._quad(self, u, t) - half
+                    r = ft - half
+                    if r == 0:
+                        return t
                     if r < 0:
                         a = t
                     else:
                         b = t
                     gt = self(t)
-                    step = r / gt if gt > 0 else mpf(0)
-                    nt = t - step
-                    if not a < nt < b or gt == 0:
+                    nt = t - r / gt if gt > 0 else (a + b) / 2
+                    if not a < nt < b:
                         nt = (a + b) / 2
-                    if abs(nt - t) < (self.hi - self.lo) * mpf(10) ** -26 or b - a < (
-                            self.hi - self.lo) * mpf(10) ** -26:
+                    ft += self._quad(self, t, nt) if nt > t else -self._quad(self, nt, t)
+                    if abs(nt - t) < tol:
                         return nt
                     t = nt
                 raise AssertionError("reference bisector did not converge")
@@ -646,7 +674,7 @@ class MpAggregate:
                 m = (a + b) / 2
                 cand.append((m, self(m)))
         gmax = max(g for _, g in cand)
-        top = gmax * (1 - mpf(10) ** -25)  # ties at 30 digits: the exact maximum
+        top = gmax * (1 - self.eps * 1e3)  # ties at the working precision
         # plateaus: pieces whose samples all reach the maximum
         plen = mpf(0)
         pmom = mpf(0)
@@ -655,22 +683,26 @@ class MpAggregate:
             if all(self(y) >= top for y in ys):
                 plen += v - u
                 pmom += (v * v - u * u) / 2
-        # maximising points: clusters of candidates closer than 1e-6 of the range are one
-        # point, a cut (a knot: a flat top like a steep bell's is only known to be there)
-        # if the cluster holds one, else its highest candidate
+        # maximising points: a run of candidates (in order, the dense samples among them)
+        # that all reach the maximum is one point, or the plateau between its first and
+        # last cut: at a cut if the run holds one (a knot: the flat top of a steep bell, or a
+        # plateau's end, is known to be there only), else at its highest candidate
         cuts = set(self.cuts)
-        clusters: list[list[tuple[mpmath.mpf, mpmath.mpf]]] = []
+        runs: list[list[tuple[mpmath.mpf, mpmath.mpf]]] = [[]]
         for y, g in sorted(cand):
-            if g < top:
-                continue
-            if clusters and y - clusters[-1][-1][0] < (self.hi - self.lo) * mpf(10) ** -6:
-                clusters[-1].append((y, g))
-            else:
-                clusters.append([(y, g)])
-        pts = []
-        for cl in clusters:
-            at_cut = [y for y, _ in cl if y in cuts]
-            pts.append(at_cut[0] if at_cut else max(cl, key=lambda c: c[1])[0])
+            if g >= top:
+                runs[-1].append((y, g))
+            elif runs[-1]:
+                runs.append([])
+        runs = [r for r in runs if r]
+        firsts, lasts = [], []
+        for r in runs:
+            at_cut = [y for y, _ in r if y in cuts]
+            best = max(r, key=lambda c: c[1])[0]
+            firsts.append(min(at_cut) if at_cut else best)
+            lasts.append(max(at_cut) if at_cut else best)
+        pts = [firsts[0], lasts[-1]] if method != "mom" else [
+            (f + la) / 2 for f, la in zip(firsts, lasts, strict=True)]
         if method == "som":
             return pts[0]
         if method == "lom":

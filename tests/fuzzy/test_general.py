@@ -23,17 +23,26 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from fractions import Fraction
 
+import mpmath
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
+from fuzzyservo.errors import InputError, ParameterError
 from fuzzyservo.fuzzy.general import (
+    compile_system,
+    eval_batch,
+    eval_first2,
     evaluate,
     membership,
 )
 from fuzzyservo.fuzzy.system import (
     And,
     Consequent,
+    Expr,
     FuzzySystem,
     Is,
     Not,
@@ -41,12 +50,16 @@ from fuzzyservo.fuzzy.system import (
     Rule,
     Term,
     Variable,
+    from_mamdani,
 )
+from fuzzyservo.paper import alpha_system, du_system
 from tests.fuzzy.general_reference import (
     distance,
     exact_outputs,
     expected,
+    mp_mu,
     mp_outputs,
+    pl_mu,
 )
 
 EXACT_TOL = 1e-12  # of the output range: the module's claim for exact outputs
@@ -74,12 +87,14 @@ def assert_exact(system: FuzzySystem, pts: Sequence[Sequence[float]],
 
 
 def assert_mp(system: FuzzySystem, pts: Sequence[Sequence[float]],
-              tol: float = SMOOTH_TOL) -> float:
-    """As assert_exact, against mpmath."""
+              tol: float = SMOOTH_TOL, dps: int = 30) -> float:
+    """As assert_exact, against mpmath at ``dps`` digits (20 are plenty for integrals, the
+    maxima need 30: comparing values places a smooth maximum to the square root of the
+    precision)."""
     ours = evaluate(system, np.array(pts, dtype=float).reshape(len(pts), -1))
     worst = 0.0
     for i, p in enumerate(pts):
-        ref = expected(system, mp_outputs(system, p))
+        ref = expected(system, mp_outputs(system, p, dps=dps))
         for k, var in enumerate(system.outputs):
             err = distance(float(ours[i, k]), ref[k]) / _width(var)
             assert err <= tol, (f"output {var.name} at {list(p)}: ours {ours[i, k]!r}, "
@@ -255,3 +270,681 @@ def test_smooth_maximum_is_located_beyond_float_resolution_of_its_value(defuzzif
                                  rules=(Rule(Is(0, 0), (Consequent(0, 0),)),
                                         Rule(Is(0, 1), (Consequent(0, 1),))))
     assert_mp(system, [[0.55], [0.3]])
+
+
+# ---------------------------------------------------------------------------------------------
+# random systems (hypothesis): two or three inputs, piecewise-linear terms, nested rules
+#
+# Coordinates are drawn half the time from a coarse grid (eighths of the range, a little
+# beyond it), so that ties, coincident vertices, crossings exactly at vertices and equal clip
+# heights occur often; the other half are arbitrary floats. Input discrete terms have distinct
+# x (the value at a jump is not defined by the model, see general_reference).
+
+PL = ("triangle", "trapezoid", "rectangle", "ramp", "discrete")
+
+
+def _no_tiny(v: float) -> float:
+    """0 for a value below 1e-6: a rule strength far below 1 loses its relative precision in
+    1 - (1 - w) (NOT NOT) however it is computed, so tiny values test rounding, not the
+    evaluator."""
+    return 0.0 if v < 1e-6 else v
+
+
+UNIT = st.one_of(st.sampled_from([0.0, 0.25, 0.5, 0.75, 1.0]),
+                 st.floats(0.0, 1.0, allow_nan=False).map(_no_tiny))
+HEIGHT = st.one_of(st.just(1.0), st.sampled_from([0.5, 0.75]), st.floats(0.05, 1.0))
+WEIGHT = st.one_of(st.just(1.0), st.sampled_from([0.0, 0.25, 0.5]),
+                   st.floats(0.0, 1.0).map(_no_tiny))
+
+
+@st.composite
+def coordinate(draw: st.DrawFn, lo: float, hi: float) -> float:
+    """A point around [lo, hi]: on a grid of eighths half the time."""
+    w = hi - lo
+    if draw(st.booleans()):
+        return lo + w * draw(st.integers(-2, 10)) / 8
+    v = draw(st.floats(lo - 0.25 * w, hi + 0.25 * w, allow_nan=False))
+    return 0.0 if abs(v) < 1e-6 * w else v  # see _no_tiny
+
+
+@st.composite
+def pl_term(draw: st.DrawFn, name: str, lo: float, hi: float, output: bool) -> Term:
+    """A random piecewise-linear term around [lo, hi]."""
+    shape = draw(st.sampled_from(PL))
+    c = coordinate(lo, hi)
+    h = draw(HEIGHT)
+    if shape == "triangle":
+        a, b, cc = sorted(draw(st.lists(c, min_size=3, max_size=3)))
+        if a == cc:
+            cc = a + (hi - lo) / 4
+            b = min(max(b, a), cc)
+        return Term(name, shape, (a, b, cc), h)
+    if shape == "trapezoid":
+        a, b, cc, d = sorted(draw(st.lists(c, min_size=4, max_size=4)))
+        if a == d:
+            d = a + (hi - lo) / 4
+            b, cc = min(max(b, a), d), min(max(cc, a), d)
+        side = draw(st.sampled_from(["none", "none", "left", "right"]))
+        if side == "left":
+            a = -math.inf
+        elif side == "right":
+            d = math.inf
+        return Term(name, shape, (a, b, cc, d), h)
+    if shape == "rectangle":
+        a, b = sorted(draw(st.lists(c, min_size=2, max_size=2)))
+        return Term(name, shape, (a, b), h)
+    if shape == "ramp":
+        a, b = draw(st.lists(c, min_size=2, max_size=2))
+        return Term(name, shape, (a, b), h)
+    n = draw(st.integers(2, 5))
+    xs = sorted(set(draw(st.lists(c, min_size=n, max_size=n))))
+    if len(xs) < 2:
+        xs = [xs[0], xs[0] + (hi - lo) / 4]
+    if output and draw(st.booleans()):  # a vertical jump: one x twice
+        k = draw(st.integers(0, len(xs) - 1))
+        xs.insert(k, xs[k])
+    ys = draw(st.lists(UNIT, min_size=len(xs), max_size=len(xs)))
+    return Term(name, shape, tuple(v for p in zip(xs, ys, strict=True) for v in p), h)
+
+
+@st.composite
+def variable_range(draw: st.DrawFn) -> tuple[float, float]:
+    """(lo, hi) with |lo|, |hi| at most a few times the width (no cancellation beyond what
+    the output's floats themselves carry)."""
+    if draw(st.booleans()):
+        lo = float(draw(st.integers(-4, 2)))
+        return lo, lo + float(draw(st.sampled_from([1, 2, 4, 8])))
+    lo = draw(st.floats(-10.0, 10.0))
+    lo = 0.0 if abs(lo) < 1e-6 else lo  # see _no_tiny
+    return lo, lo + draw(st.floats(0.5, 20.0))
+
+
+@st.composite
+def input_variable(draw: st.DrawFn, name: str) -> Variable:
+    lo, hi = draw(variable_range())
+    n = draw(st.integers(1, 4))
+    terms = tuple(draw(pl_term(f"t{k}", lo, hi, output=False)) for k in range(n))
+    return Variable(name, (lo, hi), terms, clip=draw(st.booleans()))
+
+
+@st.composite
+def output_variable(draw: st.DrawFn, name: str, kind: str, n_in: int, singleton: bool
+                    ) -> Variable:
+    lo, hi = draw(variable_range())
+    n = draw(st.integers(1, 4))
+    default = draw(st.sampled_from([math.nan, lo, 0.5 * (lo + hi)]))
+    if kind == "sugeno":
+        terms = []
+        for k in range(n):
+            if draw(st.booleans()):
+                terms.append(Term(f"o{k}", "constant", (draw(coordinate(lo, hi)),)))
+            else:
+                coef = draw(st.lists(st.floats(-2.0, 2.0), min_size=n_in + 1,
+                                     max_size=n_in + 1))
+                terms.append(Term(f"o{k}", "linear", tuple(coef)))
+        return Variable(name, (lo, hi), tuple(terms), default=default,
+                        clip=draw(st.booleans()))
+    if singleton:
+        terms = [Term(f"o{k}", "singleton", (draw(coordinate(lo, hi)),), draw(HEIGHT))
+                 for k in range(n)]
+    else:
+        terms = [draw(pl_term(f"o{k}", lo, hi, output=True)) for k in range(n)]
+    return Variable(name, (lo, hi), tuple(terms), default=default, clip=draw(st.booleans()))
+
+
+@st.composite
+def expression(draw: st.DrawFn, inputs: tuple[Variable, ...], depth: int) -> Expr:
+    kind = draw(st.sampled_from(["is", "is", "not", "and", "or"]) if depth > 0
+                else st.just("is"))
+    if kind == "is":
+        i = draw(st.integers(0, len(inputs) - 1))
+        t = draw(st.integers(0, len(inputs[i].terms) - 1))
+        return Is(i, t, draw(st.sampled_from([False, False, False, True])))
+    if kind == "not":
+        return Not(draw(expression(inputs, depth - 1)))
+    ops = tuple(draw(expression(inputs, depth - 1)) for _ in range(draw(st.integers(2, 3))))
+    return And(ops) if kind == "and" else Or(ops)
+
+
+@st.composite
+def flat_and(draw: st.DrawFn, inputs: tuple[Variable, ...]) -> Expr:
+    """A rule-table antecedent: one un-negated clause per input, AND."""
+    ops = tuple(Is(i, draw(st.integers(0, len(v.terms) - 1))) for i, v in enumerate(inputs))
+    return And(ops)
+
+
+@st.composite
+def pl_system(draw: st.DrawFn, kind: str | None = None) -> FuzzySystem:
+    """A random two- or three-input system with piecewise-linear inputs; Mamdani with
+    piecewise-linear or singleton outputs, or Sugeno."""
+    n_in = draw(st.integers(2, 3))
+    inputs = tuple(draw(input_variable(f"x{i}")) for i in range(n_in))
+    kind = kind or draw(st.sampled_from(["mamdani", "mamdani", "mamdani", "sugeno"]))
+    n_out = draw(st.integers(1, 2))
+    if kind == "sugeno":
+        defuzz = draw(st.sampled_from(["wtaver", "wtsum"]))
+        single = [False] * n_out
+    else:
+        defuzz = draw(st.sampled_from(["centroid", "bisector", "mom", "som", "lom"]))
+        single = [defuzz != "bisector" and draw(st.integers(0, 3)) == 0
+                  for _ in range(n_out)]
+    outputs = tuple(draw(output_variable(f"y{k}", kind, n_in, single[k]))
+                    for k in range(n_out))
+    table = draw(st.integers(0, 3)) == 0  # a rule table (the evaluator's fast paths)
+    rules = []
+    for _ in range(draw(st.integers(1, 6))):
+        ante = draw(flat_and(inputs)) if table else draw(expression(inputs, 2))
+        cons = tuple(
+            Consequent(k, draw(st.integers(0, len(outputs[k].terms) - 1)))
+            for k in draw(st.lists(st.integers(0, n_out - 1), min_size=1, max_size=2)))
+        rules.append(Rule(ante, cons, draw(WEIGHT)))
+    ops = {}
+    if kind == "mamdani":
+        ops = {"implication": draw(st.sampled_from(["min", "product"])),
+               "aggregation": draw(st.sampled_from(["max", "bounded_sum", "sum"]))}
+    return FuzzySystem(kind=kind, inputs=inputs, outputs=outputs, rules=tuple(rules),
+                       and_op=draw(st.sampled_from(["min", "product"])),
+                       or_op=draw(st.sampled_from(["max", "probor"])),
+                       defuzzifier=defuzz, **ops)
+
+
+@st.composite
+def points(draw: st.DrawFn, system: FuzzySystem, n: int = 4) -> list[list[float]]:
+    """Input points: term vertices, range ends and arbitrary points (a little outside the
+    ranges too)."""
+    pts = []
+    for _ in range(n):
+        row = []
+        for v in system.inputs:
+            lo, hi = v.range
+            special = [lo, hi]
+            for t in v.terms:
+                special += [p for p in t.params if math.isfinite(p)] if t.shape != "discrete" \
+                    else list(t.params[0::2])
+            choice = draw(st.integers(0, 2))
+            row.append(draw(st.sampled_from(special)) if choice == 0
+                       else draw(coordinate(lo, hi)))
+        pts.append(row)
+    return pts
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(st.data())
+def test_random_piecewise_linear_systems_are_exact(data: st.DataObject) -> None:
+    system = data.draw(pl_system())
+    assert_exact(system, data.draw(points(system)))
+
+
+# ---------------------------------------------------------------------------------------------
+# analytic values
+
+FULL = Variable("x", (0.0, 1.0), (Term("all", "rectangle", (0.0, 1.0)),
+                                  Term("ramp", "ramp", (0.0, 1.0))))
+
+
+def _one_set(term: Term, defuzzifier: str, *, rng: tuple[float, float] = (0.0, 4.0),
+             implication: str = "min") -> FuzzySystem:
+    """One output term fired by the ramp (strength = x)."""
+    return FuzzySystem(inputs=(FULL,), outputs=(Variable("y", rng, (term,)),),
+                       rules=(Rule(Is(0, 1), (Consequent(0, 0),)),),
+                       implication=implication, defuzzifier=defuzzifier)
+
+
+@pytest.mark.parametrize(("defuzzifier", "value"), [
+    ("centroid", 4.0 / 3.0),  # (a + b + c) / 3
+    ("bisector", 3.0 - math.sqrt(3.0)),  # (3 - t)^2 / 4 = 3 / 4 of the area 3 / 2
+    ("mom", 1.0), ("som", 1.0), ("lom", 1.0),
+])
+def test_fully_fired_triangle(defuzzifier: str, value: float) -> None:
+    system = _one_set(Term("t", "triangle", (0.0, 1.0, 3.0)), defuzzifier)
+    assert evaluate(system, [1.0])[0] == pytest.approx(value, abs=4e-16)  # a few roundings
+
+
+@pytest.mark.parametrize(("defuzzifier", "value"), [
+    # min(0.5, triangle 0 1 3) is the trapezoid 0 0.5 2 3 of height 0.5:
+    # centroid (d^2 + c d + c^2 - a^2 - a b - b^2) / (3 (d + c - a - b))
+    ("centroid", (9.0 + 6.0 + 4.0 - 0.25) / (3.0 * 4.5)),
+    ("mom", 1.25), ("som", 0.5), ("lom", 2.0),
+])
+def test_clipped_triangle_is_a_trapezoid(defuzzifier: str, value: float) -> None:
+    system = _one_set(Term("t", "triangle", (0.0, 1.0, 3.0)), defuzzifier)
+    assert evaluate(system, [0.5])[0] == pytest.approx(value, abs=4e-16)  # a few roundings
+
+
+@pytest.mark.parametrize("defuzzifier", ["centroid", "bisector", "mom", "som", "lom"])
+def test_scaled_symmetric_set_keeps_its_axis(defuzzifier: str) -> None:
+    # product implication scales: every method of a symmetric set gives its axis, except the
+    # smallest and largest of a plateau's maximum
+    term = Term("t", "trapezoid", (0.5, 1.5, 2.5, 3.5), height=0.8)
+    got = evaluate(_one_set(term, defuzzifier, implication="product"), [0.3])[0]
+    want = {"som": 1.5, "lom": 2.5}.get(defuzzifier, 2.0)
+    assert got == pytest.approx(want, abs=2e-15)  # a few roundings of values near 2
+
+
+def test_infinite_shoulders_are_cut_by_the_range() -> None:
+    # trapezoid -inf -inf.. : 1 up to b = 1, falling to 0 at c..d = 1..2, over [0, 4]:
+    # area 1 + 1/2, moment 1/2 + (1 + 1/3) / 2
+    left = Term("l", "trapezoid", (-math.inf, 1.0, 1.0, 2.0))
+    got = evaluate(_one_set(left, "centroid"), [1.0])[0]
+    assert got == pytest.approx((0.5 + 2.0 / 3.0) / 1.5, abs=4e-16)  # a few roundings
+    right = Term("r", "trapezoid", (2.0, 3.0, 3.0, math.inf))  # mirror image about 2
+    got = evaluate(_one_set(right, "centroid"), [1.0])[0]
+    assert got == pytest.approx(4.0 - (0.5 + 2.0 / 3.0) / 1.5, abs=4e-16)
+
+
+def test_two_disjoint_equal_sets_bisector_lies_in_the_gap() -> None:
+    # two equal triangles on [0, 1] and [3, 4]: any point of [1, 3] halves the area, and the
+    # reference accepts that interval; the evaluator's choice must lie in it
+    out = Variable("y", (0.0, 4.0), (Term("a", "triangle", (0.0, 0.5, 1.0)),
+                                     Term("b", "triangle", (3.0, 3.5, 4.0))))
+    system = FuzzySystem(inputs=(FULL,), outputs=(out,), defuzzifier="bisector",
+                         rules=(Rule(Is(0, 0), (Consequent(0, 0), Consequent(0, 1))),))
+    got = evaluate(system, [0.5])[0]
+    assert 1.0 <= got <= 3.0
+    assert exact_outputs(system, [0.5])[0] == (Fraction(1), Fraction(3))
+
+
+# ---------------------------------------------------------------------------------------------
+# Sugeno and singletons
+
+SUGENO = FuzzySystem(
+    kind="sugeno", defuzzifier="wtaver",
+    inputs=(ONE_IN, Variable("z", (-1.0, 1.0), (Term("any", "rectangle", (-1.0, 1.0)),))),
+    outputs=(Variable("u", (0.0, 10.0), (Term("c1", "constant", (1.0,)),
+                                         Term("c3", "constant", (3.0,)),
+                                         Term("lin", "linear", (2.0, -4.0, 1.0)))),),
+    rules=(Rule(And((Is(0, 0), Is(1, 0))), (Consequent(0, 0),)),
+           Rule(Is(0, 1), (Consequent(0, 1),), weight=0.5),
+           Rule(Is(0, 1), (Consequent(0, 2),))))
+
+
+@pytest.mark.parametrize(("defuzzifier", "x", "value"), [
+    # x = 0.25: strengths 0.75, 0.125, 0.25; linear output 2 (0.25) - 4 z + 1
+    ("wtaver", [0.25, -0.5], (0.75 * 1 + 0.125 * 3 + 0.25 * 3.5) / 1.125),
+    ("wtsum", [0.25, -0.5], 0.75 * 1 + 0.125 * 3 + 0.25 * 3.5),
+    ("wtsum", [0.25, -1.5], 0.75 * 1 + 0.125 * 3 + 0.25 * 5.5),  # z clipped to -1
+])
+def test_sugeno_weighted_average_and_sum(defuzzifier: str, x: list[float], value: float
+                                        ) -> None:
+    system = dataclasses.replace(SUGENO, defuzzifier=defuzzifier)
+    assert evaluate(system, x)[0] == pytest.approx(value, rel=4e-16)  # a few roundings
+    assert_exact(system, [x])
+
+
+@pytest.mark.parametrize("aggregation", ["max", "bounded_sum", "sum", "probor"])
+@pytest.mark.parametrize("implication", ["min", "product"])
+@pytest.mark.parametrize("defuzzifier", ["centroid", "mom", "som", "lom"])
+def test_singletons_are_exact(aggregation: str, implication: str, defuzzifier: str) -> None:
+    out = Variable("y", (-5.0, 5.0), (Term("n", "singleton", (-3.0,), height=0.6),
+                                      Term("z", "singleton", (0.5,)),
+                                      Term("p", "singleton", (4.0,), height=0.9)))
+    rules = (Rule(Is(0, 0), (Consequent(0, 0), Consequent(0, 1))),
+             Rule(Is(0, 1), (Consequent(0, 2),), weight=0.75),
+             Rule(Not(Is(0, 1)), (Consequent(0, 1),)))
+    system = FuzzySystem(inputs=(ONE_IN,), outputs=(out,), rules=rules,
+                         implication=implication, aggregation=aggregation,
+                         defuzzifier=defuzzifier)
+    assert_exact(system, [[0.0], [0.2], [0.5], [0.8], [1.0], [0.6]])
+
+
+# ---------------------------------------------------------------------------------------------
+# defaults, clipping, clamping
+
+
+def test_default_when_no_rule_fires() -> None:
+    out = Variable("y", (0.0, 1.0), (Term("a", "triangle", (0.0, 0.5, 1.0)),), default=0.25)
+    system = FuzzySystem(inputs=(ONE_IN,), outputs=(out, dataclasses.replace(out, name="n",
+                                                                           default=math.nan)),
+                         rules=(Rule(Is(0, 1), (Consequent(0, 0), Consequent(1, 0))),))
+    got = evaluate(system, [[0.0], [0.5]])
+    assert got[0, 0] == 0.25 and math.isnan(got[0, 1])  # hi(0) = 0: nothing fires
+    assert got[1, 0] == got[1, 1] == 0.5
+    sugeno = dataclasses.replace(SUGENO, outputs=(dataclasses.replace(SUGENO.outputs[0],
+                                                                      default=7.5),),
+                                 rules=SUGENO.rules[1:])
+    assert evaluate(sugeno, [0.0, 0.0])[0] == 7.5  # zero total weight
+
+
+def test_a_rule_with_weight_zero_never_fires() -> None:
+    out = Variable("y", (0.0, 1.0), (Term("a", "triangle", (0.0, 0.5, 1.0)),), default=0.125)
+    system = FuzzySystem(inputs=(ONE_IN,), outputs=(out,),
+                         rules=(Rule(Is(0, 1), (Consequent(0, 0),), weight=0.0),))
+    assert evaluate(system, [1.0])[0] == 0.125
+
+
+@pytest.mark.parametrize("clip", [True, False])
+def test_inputs_are_clipped_only_when_asked(clip: bool) -> None:
+    # ramp 0..1 on [0, 0.5]: at x = 0.8 the strength is 0.5 (clipped) or 0.8
+    inp = Variable("x", (0.0, 0.5), (Term("r", "ramp", (0.0, 1.0)),), clip=clip)
+    system = FuzzySystem(inputs=(inp,), outputs=(Variable("y", (0.0, 4.0), (
+        Term("t", "triangle", (0.0, 1.0, 3.0)),)),), rules=(Rule(Is(0, 0), (Consequent(0, 0),)),),
+        defuzzifier="som")
+    w = 0.5 if clip else 0.8
+    assert evaluate(system, [0.8])[0] == pytest.approx(w, abs=4e-16)  # som = w (left edge)
+    assert_exact(system, [[0.8], [-0.3], [0.5]])
+
+
+@pytest.mark.parametrize("clip", [True, False])
+def test_sugeno_outputs_are_clamped_only_when_asked(clip: bool) -> None:
+    # a Sugeno constant outside the range [0, 1]
+    sug = FuzzySystem(kind="sugeno", defuzzifier="wtaver", inputs=(FULL,),
+                      outputs=(Variable("u", (0.0, 1.0), (Term("c", "constant", (5.0,)),),
+                                        clip=clip),),
+                      rules=(Rule(Is(0, 0), (Consequent(0, 0),)),))
+    assert evaluate(sug, [0.5])[0] == (1.0 if clip else 5.0)
+
+
+@pytest.mark.parametrize("defuzzifier", ["centroid", "mom", "som", "lom"])
+def test_singletons_beyond_the_range_are_clamped(defuzzifier: str) -> None:
+    # the model makes a Mamdani output's clip True: its value lies in its range
+    out = Variable("y", (0.0, 1.0), (Term("s", "singleton", (-2.0,)),
+                                     Term("t", "singleton", (3.0,))), clip=False)
+    cogs = FuzzySystem(inputs=(FULL,), outputs=(out,), defuzzifier=defuzzifier,
+                       rules=(Rule(Is(0, 1, negated=True), (Consequent(0, 0),)),
+                              Rule(Is(0, 1), (Consequent(0, 1),))))
+    assert cogs.outputs[0].clip
+    assert evaluate(cogs, [[0.0], [1.0]])[:, 0].tolist() == [0.0, 1.0]
+    assert_exact(cogs, [[0.0], [0.25], [0.5], [1.0]])
+
+
+# ---------------------------------------------------------------------------------------------
+# edge cases
+
+
+@pytest.mark.parametrize("defuzzifier", ["centroid", "bisector", "mom", "som", "lom"])
+def test_zero_width_pieces(defuzzifier: str) -> None:
+    out = Variable("y", (0.0, 4.0), (
+        Term("left", "triangle", (1.0, 1.0, 2.0)),  # a == b
+        Term("right", "triangle", (2.0, 3.0, 3.0), height=0.7),  # b == c
+        Term("point", "rectangle", (0.5, 0.5)),  # start == end: zero area
+        Term("steps", "discrete", (0.0, 0.0, 2.5, 0.25, 2.5, 0.5, 3.5, 0.5, 3.5, 1.0, 4.0, 0.0)),
+        Term("outside", "triangle", (5.0, 6.0, 7.0)),  # entirely beyond the range
+        Term("flat", "ramp", (2.0, 2.0)),  # start == end: 0 everywhere
+    ), default=-1.0)
+    rules = tuple(Rule(Is(0, 0 if k % 2 else 1), (Consequent(0, k),), weight=1.0 - 0.1 * k)
+                  for k in range(6))
+    system = FuzzySystem(inputs=(FULL,), outputs=(out,), rules=rules,
+                         defuzzifier=defuzzifier)
+    assert_exact(system, [[0.0], [0.3], [0.5], [1.0]])
+    for k in (2, 4, 5):  # a set of zero area alone: no value
+        alone = dataclasses.replace(system, rules=(Rule(Is(0, 0), (Consequent(0, k),)),))
+        assert evaluate(alone, [0.5])[0] == -1.0
+
+
+def test_inputs_at_vertices_and_range_ends() -> None:
+    # every vertex of FIXED's inputs, crossed, and the range ends; every method
+    xs = sorted({p for t in X.terms for p in t.params if math.isfinite(p)} | set(X.range))
+    ys = sorted({p for t in Y.terms for p in (t.params[0::2] if t.shape == "discrete"
+                                               else t.params) if math.isfinite(p)}
+                | set(Y.range))
+    pts = [[a, b] for a in xs for b in ys]
+    for defuzzifier in ("centroid", "bisector", "mom", "som", "lom"):
+        assert_exact(dataclasses.replace(FIXED, defuzzifier=defuzzifier), pts)
+
+
+def test_one_rule_one_term() -> None:
+    system = _one_set(Term("t", "triangle", (-1.0, 2.0, 2.5)), "centroid")
+    assert_exact(system, [[0.0], [0.25], [1.0], [2.0]])
+
+
+# ---------------------------------------------------------------------------------------------
+# the paper's systems: the existing exact engine
+
+
+@pytest.mark.parametrize("make", [du_system, alpha_system])
+def test_paper_systems_agree_with_the_exact_engine(make: object) -> None:
+    mamdani = make()  # type: ignore[operator]
+    system = from_mamdani(mamdani)
+    rng = np.random.default_rng(2012)
+    e, de = rng.uniform(-1.2, 1.2, (2, 100_000))  # beyond the ranges too (clipped)
+    ours = evaluate(system, np.column_stack([e, de]))[:, 0]
+    theirs = mamdani.evaluate(e, de)
+    # both exact: the difference is rounding (measured 2e-15)
+    assert np.max(np.abs(ours - theirs)) <= 1e-13
+
+
+# ---------------------------------------------------------------------------------------------
+# scikit-fuzzy (a sampling peer): a two-input Mamdani system on a universe of step 1e-3
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning:skfuzzy")  # its np.maximum call
+@pytest.mark.parametrize("method", ["centroid", "bisector", "mom", "som", "lom"])
+def test_agrees_with_scikit_fuzzy_within_its_sampling_error(method: str) -> None:
+    import skfuzzy
+    from skfuzzy import control as ctrl
+
+    dx = 1e-3
+    ux = np.round(np.arange(-1.0, 1.0 + dx / 2, dx), 12)  # every vertex is a sample
+    uy = np.round(np.arange(0.0, 4.0 + dx / 2, dx), 12)
+    a, b = ctrl.Antecedent(ux, "a"), ctrl.Antecedent(ux, "b")
+    c = ctrl.Consequent(uy, "c", defuzzify_method=method)
+    terms_in = {"n": ("trapezoid", (-math.inf, -1.0, -0.5, 0.0)),
+                "z": ("triangle", (-0.5, 0.0, 0.5)),
+                "p": ("trapezoid", (0.0, 0.5, 1.0, math.inf))}
+    terms_b = {"n": ("triangle", (-1.0, -1.0, 0.25)), "p": ("triangle", (-0.25, 1.0, 1.0))}
+    terms_out = {"lo": ("triangle", (0.0, 0.5, 1.5)), "mid": ("trapezoid", (1.0, 1.75, 2.25, 3.0)),
+                 "hi": ("triangle", (2.0, 3.5, 4.0))}
+
+    def sk_mf(u: np.ndarray, shape: str, p: tuple[float, ...]) -> np.ndarray:
+        q = [min(max(v, u[0]), u[-1]) for v in p]  # a shoulder: its foot at the range end
+        return skfuzzy.trimf(u, q) if shape == "triangle" else skfuzzy.trapmf(u, q)
+
+    for var, terms, u in ((a, terms_in, ux), (b, terms_b, ux), (c, terms_out, uy)):
+        for name, (shape, p) in terms.items():
+            var[name] = sk_mf(u, shape, p)
+    sim = ctrl.ControlSystemSimulation(ctrl.ControlSystem([
+        ctrl.Rule(a["n"] & b["n"], c["lo"]), ctrl.Rule(a["z"] | ~b["p"], c["mid"]),
+        ctrl.Rule(a["p"] & b["p"], c["hi"]), ctrl.Rule(a["p"] | b["p"], c["mid"])]))
+
+    def var(name: str, rng: tuple[float, float], terms: dict[str, tuple[str, tuple[float, ...]]]
+            ) -> Variable:
+        return Variable(name, rng, tuple(Term(k, s, p) for k, (s, p) in terms.items()))
+
+    ours_sys = FuzzySystem(
+        inputs=(var("a", (-1.0, 1.0), terms_in), var("b", (-1.0, 1.0), terms_b)),
+        outputs=(var("c", (0.0, 4.0), terms_out),), defuzzifier=method,
+        rules=(Rule(And((Is(0, 0), Is(1, 0))), (Consequent(0, 0),)),
+               Rule(Or((Is(0, 1), Is(1, 1, negated=True))), (Consequent(0, 1),)),
+               Rule(And((Is(0, 2), Is(1, 1))), (Consequent(0, 2),)),
+               Rule(Or((Is(0, 2), Is(1, 1))), (Consequent(0, 1),))))
+    pts = np.random.default_rng(3).uniform(-1.0, 1.0, (60, 2))
+    ours = evaluate(ours_sys, pts)[:, 0]
+    for x, got in zip(pts, ours, strict=True):
+        sim.input["a"], sim.input["b"] = x
+        sim.compute()
+        theirs = sim.output["c"]
+        if method == "centroid":
+            # scikit-fuzzy integrates the linear interpolation of the aggregate between its
+            # samples (the universe plus the points where each term meets its own cut). It
+            # differs from the aggregate only on a cell holding a bend that is not a sample
+            # (two lines crossing, a line crossing another term's cut): by at most
+            # ds dx / 4 there, ds <= 2 s_max (s_max = 4/3, the steepest edge). At most
+            # 8 n_terms^2 = 72 such cells: |dA| <= 72 ds dx^2 / 4, and the centroid moves by
+            # at most 2 max|y| |dA| / A.
+            d_area = 72 * 2 * (4 / 3) * dx * dx / 4
+            a_ref = float(sum((v - u) * (gu + gv) / 2 for u, v, gu, gv in _pieces(
+                ours_sys, x)))
+            bound = 2 * 4.0 * d_area / a_ref + 1e-12
+        else:
+            # bisector, maxima: read off the samples, so within about one sample (plus a
+            # sample's share of a bend: 2 dx)
+            bound = 2 * dx
+        assert abs(got - theirs) <= bound, (x, got, theirs, bound)
+
+
+def _pieces(system: FuzzySystem, x: Sequence[float]) -> list[tuple[Fraction, ...]]:
+    from tests.fuzzy.general_reference import exact_strengths, pl_pieces
+
+    w = exact_strengths(system, x)
+    items = [(c.term, w[r]) for r, rule in enumerate(system.rules) if w[r] > 0
+             for c in rule.consequents]
+    return pl_pieces(system.outputs[0], items, system.implication, system.aggregation)
+
+
+# ---------------------------------------------------------------------------------------------
+# smooth terms, mixtures and probabilistic-sum aggregation: mpmath
+
+SMOOTH_X = Variable("x", (0.0, 1.0), (Term("g", "gaussian", (0.2, 0.15)),
+                                      Term("s", "sigmoid", (0.6, 12.0)),
+                                      Term("b", "bell", (0.8, 0.2, 2.0))))
+SMOOTH_Z = Variable("z", (-1.0, 1.0), (Term("z", "z", (-1.0, 0.2)),
+                                       Term("pi", "pi", (-0.6, -0.1, 0.2, 0.9)),
+                                       Term("s", "s", (0.0, 1.0))))
+SMOOTH_OUTS = (
+    Variable("g", (0.0, 10.0), (Term("a", "gaussian", (2.0, 0.8)),
+                                Term("b", "gaussian2", (3.0, 0.5, 5.0, 1.0), height=0.8),
+                                Term("c", "bell", (7.5, 1.5, 3.0)))),
+    Variable("s", (0.0, 10.0), (Term("a", "sigmoid", (3.0, -2.0)),
+                                Term("b", "dsigmoid", (2.0, 3.0, 2.0, 7.0)),
+                                Term("c", "psigmoid", (4.0, 4.0, -3.0, 8.0), height=0.9))),
+    Variable("m", (-2.0, 10.0), (Term("a", "s", (0.0, 3.0)),
+                                 Term("b", "pi", (2.0, 4.0, 5.0, 8.0)),
+                                 Term("c", "triangle", (3.0, 6.0, 9.0), height=0.7),
+                                 Term("d", "z", (6.0, 10.0)))),
+    # piecewise-linear terms: exact, except under probabilistic-sum aggregation
+    Variable("p", (0.0, 4.0), (Term("a", "triangle", (0.0, 1.0, 2.5)),
+                               Term("b", "trapezoid", (1.0, 2.0, 3.0, 3.5), height=0.6),
+                               Term("c", "ramp", (2.5, 4.0)))),
+)
+SMOOTH = FuzzySystem(
+    inputs=(SMOOTH_X, SMOOTH_Z), outputs=SMOOTH_OUTS,
+    rules=(Rule(And((Is(0, 0), Is(1, 0))), tuple(Consequent(k, 0) for k in range(4))),
+           Rule(Or((Is(0, 1), Is(1, 1, negated=True))),
+                tuple(Consequent(k, 1) for k in range(4)), weight=0.9),
+           Rule(Not(And((Is(0, 2), Is(1, 2)))), (Consequent(0, 2), Consequent(1, 2),
+                                                 Consequent(2, 2), Consequent(3, 2)),
+                weight=0.6),
+           Rule(Is(1, 2), (Consequent(2, 3), Consequent(3, 0)))),
+    and_op="product", or_op="probor")
+SMOOTH_POINTS = [[0.3, -0.4], [0.75, 0.5]]
+
+
+@pytest.mark.parametrize("aggregation", ["max", "bounded_sum", "sum", "probor"])
+@pytest.mark.parametrize("implication", ["min", "product"])
+@pytest.mark.parametrize("defuzzifier", ["centroid", "bisector"])
+def test_smooth_integrals_against_mpmath(aggregation: str, implication: str,
+                                         defuzzifier: str) -> None:
+    system = dataclasses.replace(SMOOTH, aggregation=aggregation, implication=implication,
+                                 defuzzifier=defuzzifier)
+    assert_mp(system, SMOOTH_POINTS[:1], dps=20)
+
+
+@pytest.mark.parametrize("implication", ["min", "product"])
+@pytest.mark.parametrize("defuzzifier", ["mom", "som", "lom"])
+def test_smooth_maxima_against_mpmath(implication: str, defuzzifier: str) -> None:
+    # plateaus of clipped sets, a steep bell's flat top, a dsigmoid's peak between its knots
+    system = dataclasses.replace(SMOOTH, implication=implication, defuzzifier=defuzzifier)
+    assert_mp(system, SMOOTH_POINTS[1:])
+
+
+@pytest.mark.parametrize("defuzzifier", ["mom", "som", "lom"])
+def test_two_bends_in_one_scan_cell_are_both_found(defuzzifier: str) -> None:
+    # Bounded sum of the clipped gaussian2 and bell: saturated (a plateau at 1) on
+    # [6.028, 6.171], and the bell reaches its clip height at 6.095; 6.095 and 6.171 fall in
+    # one scan cell of [5, 7.5]: only one of the two changes was located, so the plateau's
+    # piece [6.095, 6.171] was lost (lom 6.095 instead of 6.171).
+    system = dataclasses.replace(
+        SMOOTH, outputs=SMOOTH.outputs[:1], aggregation="bounded_sum", defuzzifier=defuzzifier,
+        rules=tuple(dataclasses.replace(r, consequents=(r.consequents[0],))
+                    for r in SMOOTH.rules if r.consequents[0].variable == 0))
+    assert_mp(system, [[0.05, 0.95]])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("aggregation", ["max", "bounded_sum", "sum", "probor"])
+@pytest.mark.parametrize("implication", ["min", "product"])
+@pytest.mark.parametrize("defuzzifier", ["centroid", "bisector", "mom", "som", "lom"])
+def test_smooth_systems_against_mpmath_everywhere(aggregation: str, implication: str,
+                                                  defuzzifier: str) -> None:
+    system = dataclasses.replace(SMOOTH, aggregation=aggregation, implication=implication,
+                                 defuzzifier=defuzzifier)
+    pts = [[0.05, 0.95], [0.5, 0.0], [1.0, -1.0]]
+    assert_mp(system, pts, dps=30 if defuzzifier in ("mom", "som", "lom") else 20)
+
+
+# ---------------------------------------------------------------------------------------------
+# membership functions (the evaluator's, public as ``membership``)
+
+PL_TERMS = [
+    Term("tri", "triangle", (-1.0, 0.25, 2.0), 0.7), Term("left", "triangle", (0.0, 0.0, 1.0)),
+    Term("right", "triangle", (0.0, 1.0, 1.0)),
+    Term("trap", "trapezoid", (-1.0, -0.5, 0.5, 1.5)),
+    Term("lsh", "trapezoid", (-math.inf, -0.5, 0.0, 1.0), 0.5),
+    Term("rsh", "trapezoid", (-0.5, 0.5, 0.5, math.inf)),
+    Term("rect", "rectangle", (-0.25, 0.75)), Term("dot", "rectangle", (0.5, 0.5)),
+    Term("up", "ramp", (-1.0, 1.0)), Term("down", "ramp", (1.0, -0.5), 0.9),
+    Term("none", "ramp", (0.0, 0.0)),
+    Term("disc", "discrete", (-1.0, 0.2, 0.0, 1.0, 0.5, 0.5, 2.0, 0.0)),
+]
+SMOOTH_TERMS = [
+    Term("g", "gaussian", (0.5, 0.3)), Term("g2", "gaussian2", (-0.5, 0.2, 0.25, 0.6), 0.8),
+    Term("bell", "bell", (0.0, -0.4, 2.5)), Term("sig", "sigmoid", (0.2, -7.0)),
+    Term("dsig", "dsigmoid", (-0.5, 9.0, 4.0, 0.7)),
+    Term("psig", "psigmoid", (-0.4, 5.0, -8.0, 0.9)),
+    Term("s", "s", (-0.5, 1.0)), Term("z", "z", (-1.0, 0.4), 0.6),
+    Term("pi", "pi", (-1.0, -0.2, 0.3, 1.2)),
+]
+
+
+def _sample_points(term: Term) -> list[float]:
+    pts = {float(v) for v in np.linspace(-2.0, 2.5, 91)}
+    pts.update(p for p in term.params if math.isfinite(p))
+    pts.update(np.nextafter(p, s) for p in term.params if math.isfinite(p)
+               for s in (-math.inf, math.inf))
+    return sorted(pts)
+
+
+@pytest.mark.parametrize("term", PL_TERMS, ids=lambda t: t.name)
+def test_piecewise_linear_memberships_are_exact(term: Term) -> None:
+    xs = _sample_points(term)
+    got = membership(term.shape, term.params, xs, term.height)
+    for x, g in zip(xs, got, strict=True):
+        want = pl_mu(term, Fraction(x))
+        assert abs(Fraction(float(g)) - want) <= Fraction(1, 2**51), (x, g, float(want))
+
+
+@pytest.mark.parametrize("term", SMOOTH_TERMS, ids=lambda t: t.name)
+def test_smooth_memberships_against_mpmath(term: Term) -> None:
+    xs = _sample_points(term)
+    got = membership(term.shape, term.params, xs, term.height)
+    with mpmath.workdps(30):
+        want = [float(mp_mu(term, mpmath.mpf(x))) for x in xs]
+    # exp, powers and divisions of doubles: a few units of rounding
+    np.testing.assert_allclose(got, want, rtol=1e-14, atol=1e-15)
+
+
+def test_memberships_of_nan_and_shapes() -> None:
+    assert math.isnan(membership("triangle", (0.0, 1.0, 2.0), [math.nan])[0])
+    assert membership("trapezoid", (0.0, 1.0, 2.0, 3.0), [[0.5, 2.5], [1.5, 9.0]]).shape == (2, 2)
+    assert membership("singleton", (1.0,), [1.0, 1.0 + 1e-15]).tolist() == [1.0, 0.0]
+
+
+# ---------------------------------------------------------------------------------------------
+# the entry points agree with each other
+
+
+def test_batch_parallel_point_and_first2_agree() -> None:
+    system = dataclasses.replace(FIXED, defuzzifier="bisector")
+    comp = compile_system(system)
+    pts = np.random.default_rng(4).uniform([-1.2, -0.5], [1.2, 4.5], (3000, 2))
+    serial = evaluate(comp, pts)
+    assert np.array_equal(evaluate(comp, pts, parallel=True), serial, equal_nan=True)
+    out = np.empty_like(serial)
+    eval_batch(comp.ints, comp.floats, pts, out)
+    assert np.array_equal(out, serial, equal_nan=True)
+    for k in range(0, 3000, 300):
+        assert np.array_equal(evaluate(comp, pts[k]), serial[k], equal_nan=True)
+        first = eval_first2(pts[k, 0], pts[k, 1], comp.ints, comp.floats)
+        assert first == serial[k, 0] or (math.isnan(first) and math.isnan(serial[k, 0]))
+
+
+def test_bad_inputs_are_refused() -> None:
+    with pytest.raises(InputError, match="shape"):
+        evaluate(FIXED, np.zeros((3, 3)))
+    with pytest.raises(InputError, match="finite"):
+        evaluate(FIXED, [0.0, math.nan])
+    with pytest.raises(InputError, match="numeric"):
+        evaluate(FIXED, [["a", "b"]])
+    with pytest.raises(ParameterError, match="FuzzySystem"):
+        compile_system("not a system")  # type: ignore[arg-type]

@@ -74,6 +74,8 @@ _AGG = {"max": 0, "bounded_sum": 1, "sum": 2, "probor": 3}
 
 #: Scan cells per knot interval when locating the pieces of a smooth aggregate.
 SCAN_CELLS = 32
+#: Most changes of the piece signature located inside one scan cell.
+CELL_CHANGES = 8
 #: Acceptance of a Gauss-Kronrod subinterval: |K15 - G7| <= QUAD_RTOL * A * len / range.
 QUAD_RTOL = 1e-12
 #: Most subintervals per piece before the adaptive quadrature gives up refining.
@@ -1209,7 +1211,7 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
                     knots, nk)
     knots = np.sort(knots[:nk])
     # pieces: the knots, and the points where the signature changes on a scan (bisected)
-    cuts = np.empty(nk * (SCAN_CELLS + 1) + 2)
+    cuts = np.empty(nk * (CELL_CHANGES * SCAN_CELLS + 1) + 2)
     nc = 0
     for k in range(nk - 1):
         p = knots[k]
@@ -1224,19 +1226,26 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
         for s in range(1, SCAN_CELLS + 1):
             yb = p + s * dy if s < SCAN_CELLS else q - 0.5 * dy * 1e-9
             sb = _signature(yb, ints, f, first, n_items, lab, h)
-            if sb != sa:
-                a = ya
+            # every change inside the cell: bisect to the first, then go on from it
+            sc = sa
+            yc = ya
+            for _ in range(CELL_CHANGES):
+                if sb == sc:
+                    break
+                a = yc
                 b = yb
                 for _ in range(200):
                     mid = 0.5 * (a + b)
                     if mid <= a or mid >= b:
                         break
-                    if _signature(mid, ints, f, first, n_items, lab, h) == sa:
+                    if _signature(mid, ints, f, first, n_items, lab, h) == sc:
                         a = mid
                     else:
                         b = mid
                 cuts[nc] = 0.5 * (a + b)
                 nc += 1
+                yc = b
+                sc = _signature(yc, ints, f, first, n_items, lab, h)
             ya = yb
             sa = sb
     cuts[nc] = knots[nk - 1]
