@@ -549,15 +549,17 @@ class MpAggregate:
             for i in range(1, scan + 1):
                 y = p + (q - p) * i / scan if i < scan else q - (q - p) * self.eps
                 sig = self.signature(y)
-                if sig != prev:
-                    a, b = prev_y, y
+                cur, start = prev, prev_y
+                while sig != cur:  # every change in the cell: the first, then on from it
+                    a, b = start, y
                     while b - a > (self.hi - self.lo) * self.eps:
                         m = (a + b) / 2
-                        if self.signature(m) == prev:
+                        if self.signature(m) == cur:
                             a = m
                         else:
                             b = m
                     cuts.add((a + b) / 2)
+                    cur, start = self.signature(b), b
                 prev, prev_y = sig, y
         self.cuts = sorted(cuts)
 
