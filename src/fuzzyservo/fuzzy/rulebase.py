@@ -91,10 +91,15 @@ class LinguisticVariable:
             )
         n = len(labels)
         d = (hi - lo) / (n - 1)
-        peaks = [lo + k * d for k in range(n)]
+        # one list of peaks, shared by neighbouring triangles as their feet, so that a foot
+        # and the neighbour's peak are the same float; weighted means keep a symmetric
+        # universe's peaks symmetric (-1/3 and 1/3, and 0 exactly)
+        peaks = [(lo * (n - 1 - k) + hi * k) / (n - 1) for k in range(n)]
         peaks[-1] = hi
+        ext = [lo - d, *peaks, hi + d]
         terms = tuple(
-            (label, Triangle(a=p - d, b=p, c=p + d)) for label, p in zip(labels, peaks, strict=True)
+            (label, Triangle(a=ext[k], b=ext[k + 1], c=ext[k + 2]))
+            for k, label in enumerate(labels)
         )
         return cls(name=name, universe=(lo, hi), terms=terms)
 
