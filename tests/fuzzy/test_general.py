@@ -240,6 +240,18 @@ def test_weakly_fired_plateau_is_flat(defuzzifier: str, strength: float) -> None
     assert_exact(system, [[strength]])
 
 
+@pytest.mark.parametrize("implication", ["min", "product"])
+def test_bisector_of_a_very_weakly_fired_set(implication: str) -> None:
+    # the bisector's quadratic squared the aggregate's values: below 1e-154 they underflowed
+    # (a product of far gaussian tails: exp(-200) exp(-200) = 1e-174)
+    ramp_in = Variable("x", (0.0, 1.0), (Term("r", "ramp", (0.0, 1.0)),))
+    out = Variable("y", (0.0, 4.0), (Term("t", "triangle", (0.0, 3.0, 4.0)),))
+    system = FuzzySystem(inputs=(ramp_in,), outputs=(out,), defuzzifier="bisector",
+                         implication=implication,
+                         rules=(Rule(Is(0, 0), (Consequent(0, 0),)),))
+    assert_exact(system, [[1e-174], [1e-300], [0.5]])
+
+
 TWO_GAUSS = FuzzySystem(
     inputs=(ONE_IN,),
     outputs=(Variable("y", (0.0, 10.0), (Term("a", "gaussian", (4.0, 1.0)),

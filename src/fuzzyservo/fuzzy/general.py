@@ -878,13 +878,15 @@ def _defuzz_segments(n_seg: int, su: FloatArray, sv: FloatArray, gu: FloatArray,
     if mode == 0:
         return ref + moment / area
     if mode == 1:
-        half = 0.5 * area
+        # in units of the largest value: the quadratic squares the values (no underflow)
+        sc = 1.0 / gmax
+        half = 0.5 * area * sc
         acc = 0.0
         for s in range(n_seg):
             u = su[s]
             v = sv[s]
-            a = gu[s]
-            b = gv[s]
+            a = gu[s] * sc
+            b = gv[s] * sc
             seg = 0.5 * (v - u) * (a + b)
             if acc + seg >= half and seg > 0.0:
                 need = half - acc
