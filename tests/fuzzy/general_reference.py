@@ -10,13 +10,19 @@ no code with the evaluator:
   with every clip height, with 0 and with 1; then, for bounded sum, where the sum reaches 1);
   between two candidates it is linear, which is checked exactly at a third point, so it is
   integrated exactly. Singleton outputs (COGS) and Sugeno outputs are exact sums.
-- :func:`mp_outputs`: mpmath at 30 digits for any system (smooth terms, probabilistic-sum
-  aggregation): the aggregate is split at the terms' parameters and at the points where an
-  implied set meets its clip height, the largest implied set changes, a bounded sum reaches
-  1 or a dsigmoid's sigmoids cross (a fine scan, each change bisected to 30 digits), and
-  integrated piece by piece with ``mpmath.quad`` (a piece is halved until the quadrature's
-  error estimate is below 1e-22 of the range, so a missed bend costs time, not accuracy); the
-  maxima by a dense search refined by golden section.
+- :func:`mp_outputs`: mpmath (30 digits, 20 for integrals only) for any system (smooth
+  terms, probabilistic-sum aggregation): the aggregate is split at the terms' parameters and
+  at the points where an implied set meets its clip height, the largest implied set changes, a
+  bounded sum reaches 1 or a dsigmoid's sigmoids cross (a scan of 200 cells per interval of
+  parameters, every change in a cell bisected to the working precision), and integrated piece
+  by piece by Gauss-Legendre quadrature (``mpmath.quad``; a piece is halved until its error
+  estimate is below 1e4 units of the working precision, so a missed bend costs time, not
+  accuracy). The bisector: Newton steps on the running integral. The maxima: a dense search
+  (60 samples per piece) refined by golden section around every local maximum of the samples;
+  values within 1e3 units of the working precision of the largest tie; a run of consecutive
+  candidates that all tie is one maximising point (or plateau), taken at the cuts it holds if
+  any (a knot: a steep bell's flat top, or a plateau's end, is located exactly only there),
+  else at its highest candidate.
 
 Each output's true value is returned as an interval ``(lo, hi)`` (equal ends unless the value is
 not unique: a bisector that falls in a gap of zero membership may be any point of the gap), or
@@ -39,7 +45,8 @@ Conventions (the model's, from ``fuzzyservo.fuzzy.system``):
   points when it has measure zero;
 - singleton (COGS) outputs: a singleton's implied height is the implication of the rule
   strength with the term's height (min: min(w, height); product: w height), aggregated per
-  position on the output axis (two terms at the same x are one point of the aggregate).
+  term, and the centroid is IEC 61131-7's sum over the terms, sum(x h) / sum(h) (two terms at
+  the same x count twice, as in IEC's formula).
 """
 
 from __future__ import annotations
@@ -340,12 +347,11 @@ def exact_outputs(system: FuzzySystem, x: Sequence[float]) -> list[Interval | No
 
 def _singletons(var: Variable, items: list[tuple[int, Fraction]], system: FuzzySystem
                 ) -> Interval | None:
-    heights: dict[Fraction, Fraction] = {}
+    heights: dict[int, Fraction] = {}  # per term
     for j, w in items:
         t = var.terms[j]
-        pos = Fraction(t.params[0])
         v = _implied(system.implication, w, Fraction(t.height))
-        old = heights.get(pos, ZERO)
+        old = heights.get(j, ZERO)
         if system.aggregation == "max":
             new = max(old, v)
         elif system.aggregation == "bounded_sum":
@@ -354,15 +360,16 @@ def _singletons(var: Variable, items: list[tuple[int, Fraction]], system: FuzzyS
             new = old + v
         else:
             new = old + v - old * v
-        heights[pos] = new
+        heights[j] = new
     den = sum(heights.values(), ZERO)
     if den == 0:
         return None
+    pos = {j: Fraction(var.terms[j].params[0]) for j in heights}
     if system.defuzzifier == "centroid":
-        c = sum((p * hgt for p, hgt in heights.items()), ZERO) / den
+        c = sum((pos[j] * hgt for j, hgt in heights.items()), ZERO) / den
         return c, c
     gmax = max(heights.values())
-    top = sorted(p for p, hgt in heights.items() if hgt >= gmax * (1 - TIE))
+    top = sorted({pos[j] for j, hgt in heights.items() if hgt >= gmax * (1 - TIE)})
     m = {"som": top[0], "lom": top[-1], "mom": sum(top, ZERO) / len(top)}[system.defuzzifier]
     return m, m
 

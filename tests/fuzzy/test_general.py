@@ -419,10 +419,22 @@ def expression(draw: st.DrawFn, inputs: tuple[Variable, ...], depth: int) -> Exp
 
 
 @st.composite
-def flat_and(draw: st.DrawFn, inputs: tuple[Variable, ...]) -> Expr:
-    """A rule-table antecedent: one un-negated clause per input, AND."""
-    ops = tuple(Is(i, draw(st.integers(0, len(v.terms) - 1))) for i, v in enumerate(inputs))
-    return And(ops)
+def flat_rule(draw: st.DrawFn, inputs: tuple[Variable, ...], style: str) -> Expr:
+    """The antecedents of the evaluator's fast paths: "table" (an AND of one plain clause per
+    input), "pivot" (an AND naming input 0 plainly and some others, maybe negated), "or" (an
+    OR of clauses on distinct inputs)."""
+    if style == "table":
+        return And(tuple(Is(i, draw(st.integers(0, len(v.terms) - 1)))
+                         for i, v in enumerate(inputs)))
+    others = [i for i in range(1, len(inputs)) if draw(st.booleans())]
+    if style == "or" and not others:
+        others = [1]
+    ops = [Is(0, draw(st.integers(0, len(inputs[0].terms) - 1)))]
+    ops += [Is(i, draw(st.integers(0, len(inputs[i].terms) - 1)), draw(st.booleans()))
+            for i in others]
+    if len(ops) == 1:
+        return ops[0]
+    return And(tuple(ops)) if style == "pivot" else Or(tuple(ops))
 
 
 @st.composite
@@ -442,10 +454,10 @@ def pl_system(draw: st.DrawFn, kind: str | None = None) -> FuzzySystem:
                   for _ in range(n_out)]
     outputs = tuple(draw(output_variable(f"y{k}", kind, n_in, single[k]))
                     for k in range(n_out))
-    table = draw(st.integers(0, 3)) == 0  # a rule table (the evaluator's fast paths)
+    style = draw(st.sampled_from(["any", "any", "any", "table", "pivot", "or"]))
     rules = []
     for _ in range(draw(st.integers(1, 6))):
-        ante = draw(flat_and(inputs)) if table else draw(expression(inputs, 2))
+        ante = draw(expression(inputs, 2)) if style == "any" else draw(flat_rule(inputs, style))
         cons = tuple(
             Consequent(k, draw(st.integers(0, len(outputs[k].terms) - 1)))
             for k in draw(st.lists(st.integers(0, n_out - 1), min_size=1, max_size=2)))
@@ -580,7 +592,7 @@ SUGENO = FuzzySystem(
 def test_sugeno_weighted_average_and_sum(defuzzifier: str, x: list[float], value: float
                                         ) -> None:
     system = dataclasses.replace(SUGENO, defuzzifier=defuzzifier)
-    assert evaluate(system, x)[0] == pytest.approx(value, rel=4e-16)  # a few roundings
+    assert evaluate(system, x)[0] == pytest.approx(value, rel=4e-16, abs=0)  # a few roundings
     assert_exact(system, [x])
 
 
@@ -599,6 +611,20 @@ def test_singletons_are_exact(aggregation: str, implication: str, defuzzifier: s
                          defuzzifier=defuzzifier)
     assert_exact(system, [[0.0], [0.2], [0.5], [0.8], [1.0], [0.6]])
 
+
+
+@pytest.mark.parametrize(("defuzzifier", "value"), [
+    ("centroid", (2.0 + 2.0 + 8.0) / 3.0),  # IEC's COGS sums over the terms
+    ("mom", (2.0 + 8.0) / 2.0),  # the mean of the maximising points (the model's mom)
+])
+def test_singletons_at_one_position(defuzzifier: str, value: float) -> None:
+    out = Variable("y", (0.0, 10.0), (Term("a", "singleton", (2.0,)),
+                                      Term("b", "singleton", (2.0,)),
+                                      Term("c", "singleton", (8.0,))))
+    system = FuzzySystem(inputs=(FULL,), outputs=(out,), defuzzifier=defuzzifier,
+                         rules=(Rule(Is(0, 0), tuple(Consequent(0, k) for k in range(3))),))
+    assert evaluate(system, [0.5])[0] == pytest.approx(value, rel=4e-16, abs=0)  # a few roundings
+    assert_exact(system, [[0.5]])
 
 # ---------------------------------------------------------------------------------------------
 # defaults, clipping, clamping

@@ -985,8 +985,16 @@ def _singletons(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArr
             x = f[ints[tt + 3 * (first + j) + 1]]
             best_lo = min(best_lo, x)
             best_hi = max(best_hi, x)
-            tot += x
-            cnt += 1
+            # the mean of the maximising points: a position held by an earlier term once
+            seen = False
+            for jj in range(j):
+                if hts[jj] >= gmax * (1.0 - 1e-12) and hts[jj] > 0.0 and \
+                        f[ints[tt + 3 * (first + jj) + 1]] == x:
+                    seen = True
+                    break
+            if not seen:
+                tot += x
+                cnt += 1
     if mode == 2:
         return tot / cnt
     return best_lo if mode == 3 else best_hi
