@@ -25,7 +25,10 @@ payloads' marker file must never appear. A case slower than ``--slow`` seconds f
 
 Failures are grouped by stage, kind and the place they were raised; each group is printed
 once with its smallest input, which is also written under ``--out`` (the text as a file of
-its format, a system as its ``repr``) with its traceback; the exit status is then 1.
+its format, a system as its ``repr``) with its traceback; the exit status is then 1. The
+evaluator runs in a child process (a crash or a hang of its compiled code, e.g. an
+out-of-bounds write, is a failure of the stage ``evaluate``; ``NUMBA_DISABLE_JIT=1`` on the
+reproducer shows the line); its time is not counted in a case's.
 
 Run: ``python benchmarks/fuzz_formats.py [--count 100000] [--seed 0]``. Not part of
 ``make test`` (which runs about 2,000 hypothesis cases of the same generators).
@@ -213,16 +216,18 @@ class Fuzzer:
             return
         t.parsed += 1
         self.evaluate(s, fmt)
+        start = time.perf_counter()
         self.round_trips(s, fmt, "")
+        self._timed(t, start, "writing a parsed system", text, f".{fmt}")
 
     def system_case(self, fmt: str) -> None:
         fit = choice(self.r, (None, *FORMATS))
         s = random_system(self.r, fit)
         self.tallies[fmt].systems += 1
-        start = time.perf_counter()
         self.evaluate(s, fmt)
+        start = time.perf_counter()
         self.round_trips(s, "system", fit or "")
-        self._timed(self.tallies[fmt], start, "random system", repr(s), ".py")
+        self._timed(self.tallies[fmt], start, "writing a random system", repr(s), ".py")
 
     def _timed(self, t: Tally, start: float, what: str, example: str, suffix: str) -> None:
         dt = time.perf_counter() - start

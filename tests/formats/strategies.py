@@ -36,10 +36,9 @@ from hypothesis import strategies as st
 
 # the readers are imported here, before any CodeWatch: an import runs code (a dataclass's
 # methods are made by exec), which the watch would report
-import fuzzyservo.formats.fcl
-import fuzzyservo.formats.fis
-import fuzzyservo.formats.fll  # noqa: F401
+import fuzzyservo.formats.fis  # noqa: F401
 from fuzzyservo.errors import FormatError, ParameterError
+from fuzzyservo.formats import fcl, fll
 from fuzzyservo.formats.io import dumps, loads
 from fuzzyservo.fuzzy.general import evaluate
 from fuzzyservo.fuzzy.system import (
@@ -145,15 +144,32 @@ _FIRST = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ_"
 _REST = _FIRST + "0123456789"
 
 
+_FCL_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z0-9_]+)*\Z")
+
+
+def name_fits(fmt: str, name: str) -> bool:
+    """Whether ``fmt``'s writer takes ``name`` for any variable, term or system (as its
+    module docstring says: FCL neither keywords nor fuzzylite's hedges nor dots at an end;
+    FLL no rule keywords; .fis anything)."""
+    if fmt == "fcl":
+        return bool(_FCL_NAME.match(name)) and name.upper() not in fcl._RESERVED \
+            and name.lower() not in fcl._HEDGES
+    if fmt == "fll":
+        return name not in fll._KEYWORDS
+    return True
+
+
 def ident(r: Rand, fit: str | None) -> str:
-    """A name the model accepts; without ``fit`` often a tricky one."""
-    if fit is None and chance(r, 0.3):
-        return choice(r, TRICKY_NAMES)
+    """A name the model accepts; often a tricky one (with ``fit``, one that format takes)."""
+    if chance(r, 0.3):
+        name = choice(r, TRICKY_NAMES)
+        if fit is None or name_fits(fit, name):
+            return name
     while True:
         name = choice(r, _FIRST) + "".join(choice(r, _REST) for _ in range(r.integer(0, 5)))
         if fit is None and chance(r, 0.1):
             name += choice(r, (".", ".1", ".a.b", "..x"))
-        if name.lower() not in _AVOID:
+        if name.lower() not in _AVOID and (fit is None or name_fits(fit, name)):
             return name
 
 
@@ -784,11 +800,31 @@ def sample_points(r: Rand, s: FuzzySystem, n: int = 4) -> np.ndarray:
         0.0, 1.0, 0.5, 0.25, r.unit()))) for v in s.inputs] for _ in range(n)])
 
 
+def sugeno_bound(s: FuzzySystem, j: int, x: np.ndarray) -> float:
+    """A bound of |output j| of a Sugeno system at the point ``x``: each rule adds at most
+    the largest |c0| + sum |ci xi| of the output's terms (weights and strengths are <= 1,
+    and a weighted average is at most the largest value)."""
+    largest = 0.0
+    for t in s.outputs[j].terms:
+        c = t.params
+        z = abs(c[-1]) + (sum(abs(ci) * abs(float(xi)) for ci, xi in zip(c[:-1], x, strict=True))
+                          if t.shape == "linear" else 0.0)
+        largest = max(largest, z)
+    count = sum(1 for r in s.rules for c in r.consequents if c.variable == j)
+    return largest * max(count, 1)
+
+
 def check_evaluate(s: FuzzySystem, x: np.ndarray) -> None:
-    """``evaluate`` gives finite outputs, NaN only for an output whose default is NaN."""
+    """``evaluate`` gives finite outputs, NaN only for an output whose default is NaN; a
+    Sugeno output may be infinite only where its exact value may exceed the largest float
+    (:func:`sugeno_bound`; a linear term of an input near 1e308 can)."""
     y = evaluate(s, x)
     for j, v in enumerate(s.outputs):
-        col = y[:, j]
+        col = y[:, j].copy()
+        if s.kind == "sugeno":
+            for i in range(len(col)):
+                if np.isinf(col[i]) and not sugeno_bound(s, j, x[i]) < 1.7e308:
+                    col[i] = 0.0  # the exact value may overflow
         if np.isinf(col).any() or (np.isnan(col).any() and not math.isnan(v.default)):
             raise Broken("evaluate: not finite", f"output {v.name!r} (default {v.default!r}) "
                          f"at {x.tolist()}: {col.tolist()}")
@@ -796,12 +832,18 @@ def check_evaluate(s: FuzzySystem, x: np.ndarray) -> None:
 
 class EvalWorker:
     """:func:`check_evaluate` in a child process, so that a crash of the compiled evaluator
-    (an abort, a segmentation fault) is a reported failure and not the end of the fuzzer.
+    (an abort, a segmentation fault, or a hang: a corrupted heap can deadlock in ``free``
+    instead of aborting) is a reported failure and not the end of the fuzzer.
     A :class:`Broken` or any exception in the child is raised here as :class:`Broken`
     (kind ``evaluate: <exception type>``, detail: the child's traceback)."""
 
-    def __init__(self, timeout: float = 60.0) -> None:
+    def __init__(self, timeout: float = 20.0) -> None:
         self.timeout = timeout
+        # load the compiled evaluator here, once: every child (a new one after a crash) is
+        # forked with it
+        x = Variable("x", (0.0, 1.0), (Term("a", "triangle", (0.0, 0.5, 1.0)),))
+        evaluate(FuzzySystem(inputs=(x,), outputs=(Variable("y", x.range, x.terms),),
+                             rules=(Rule(Is(0, 0), (Consequent(0, 0),)),)), [[0.25]])
         self._start()
 
     def _start(self) -> None:
