@@ -36,7 +36,7 @@ from hypothesis import strategies as st
 from fuzzyservo.errors import ParameterError
 from fuzzyservo.formats.io import dumps, loads
 from fuzzyservo.fuzzy.general import evaluate
-from fuzzyservo.fuzzy.system import Consequent, FuzzySystem, Is, Rule, Term, Variable
+from fuzzyservo.fuzzy.system import And, Consequent, FuzzySystem, Is, Rule, Term, Variable
 from tests.formats.strategies import (
     CODE_PAYLOADS,
     FORMATS,
@@ -253,3 +253,36 @@ def test_centroid_of_a_symmetric_set_on_a_huge_range() -> None:
         s = _one_rule(Variable("y", (-big, big), ()), Term("b", "triangle", (-big, 0.0, big)))
         y = evaluate(s, [[0.25]])[0, 0]
         assert abs(y) <= 1e-12 * big, (big, y)
+
+
+def _many_rules(n_terms: int, n_rules: int) -> FuzzySystem:
+    terms = tuple(Term(f"t{i}", "triangle", (i, i + 1.0, i + 2.0)) for i in range(n_terms))
+    top = n_terms + 2.0
+    inputs = tuple(Variable(f"x{k}", (0.0, top), terms) for k in range(3))
+    out = Variable("y", (0.0, top), terms, default=top / 2)
+    rules = tuple(Rule(And((Is(0, r % n_terms), Is(1, 7 * r % n_terms), Is(2, 13 * r % n_terms))),
+                       (Consequent(0, r % n_terms),)) for r in range(n_rules))
+    return FuzzySystem(inputs=(*inputs,), outputs=(out,), rules=rules)
+
+
+def _read_time(text: str, fmt: str) -> float:
+    start = time.perf_counter()
+    loads(text, fmt)
+    return time.perf_counter() - start
+
+
+def _rules_time(fmt: str, n_terms: int) -> float:
+    """Time to read 5000 rules over variables of ``n_terms`` terms: a file with them less the
+    same file without rules (best of two)."""
+    with_rules = dumps(_many_rules(n_terms, 5000), fmt)
+    without = dumps(_many_rules(n_terms, 0), fmt)
+    return min(_read_time(with_rules, fmt) - _read_time(without, fmt) for _ in range(2))
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_reading_a_rule_does_not_scan_the_terms(fmt: str) -> None:
+    # found by a large-file check: FCL and FLL looked each clause's term up by a scan of
+    # the variable's terms, so 10^5 rules over 1000-term variables took about a minute, and
+    # FCL compared each new term name with all before it. Rules over 1000 terms a variable
+    # must read about as fast as rules over 10 (a factor 1.5 for timing noise)
+    assert _rules_time(fmt, 1000) < 1.5 * _rules_time(fmt, 10) + 0.05

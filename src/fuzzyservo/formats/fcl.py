@@ -307,6 +307,7 @@ class _Block:
     default: float | None = None
     accu: _Tok | None = None
     lock: bool = False
+    term_names: set[str] = field(default_factory=set)  # for the repeated-name check
 
 
 @dataclass(frozen=True, slots=True)
@@ -636,8 +637,9 @@ class _Parser:
     def term(self, b: _Block) -> None:
         self.advance()
         name = self.name("a term name")
-        if any(ts.name.text == name.text for ts in b.terms):
+        if name.text in b.term_names:
             raise self.err(name, f"{b.name.text!r} has a second term {name.text!r}")
+        b.term_names.add(name.text)
         self.expect(":=", "':='")
         t = self.peek()
         if t.kind == "(":
@@ -832,6 +834,11 @@ class _Builder:
     def __init__(self, p: _Parser) -> None:
         self.p = p
         self.notes: list[str] = []
+        # name -> index of the inputs, outputs and each variable's terms (rules look names
+        # up in constant time: a scan per clause made large files quadratic)
+        self.input_at: dict[str, int] = {}
+        self.output_at: dict[str, int] = {}
+        self.term_at: dict[str, dict[str, int]] = {}
 
     def err(self, t: _Tok, msg: str) -> FormatError:
         return self.p.err(t, msg)
@@ -1026,7 +1033,7 @@ class _Builder:
     def expr(self, n: _Node, inputs: tuple[Variable, ...]) -> Expr:
         if isinstance(n, _NIs):
             name = n.var.text
-            idx = next((i for i, v in enumerate(inputs) if v.name == name), None)
+            idx = self.input_at.get(name)
             if idx is None:
                 d = self.p.decls.get(name)
                 if d is not None and d.output:
@@ -1041,9 +1048,11 @@ class _Builder:
         return And(ops) if n.word == "AND" else Or(ops)
 
     def term_index(self, v: Variable, t: _Tok, role: str) -> int:
-        for i, term in enumerate(v.terms):
-            if term.name == t.text:
-                return i
+        index = self.term_at.get(v.name)
+        if index is None:
+            index = self.term_at[v.name] = {term.name: i for i, term in enumerate(v.terms)}
+        if t.text in index:
+            return index[t.text]
         if t.text.lower() in _HEDGES:
             raise self.err(t, f"unsupported hedge: {t.text} (supported: NOT)")
         raise self.err(t, f"{role} {v.name!r} has no term {t.text!r} (terms: "
@@ -1057,7 +1066,7 @@ class _Builder:
                 ante = self.expr(rs.antecedent, inputs)
                 cons: list[Consequent] = []
                 for vt, tt in rs.consequents:
-                    idx = next((i for i, v in enumerate(outputs) if v.name == vt.text), None)
+                    idx = self.output_at.get(vt.text)
                     if idx is None:
                         d = self.p.decls.get(vt.text)
                         if d is not None:
@@ -1101,6 +1110,8 @@ class _Builder:
         self.check_outputs(kind, outputs, len(inputs))
         defuzz = self.defuzzifier(sugeno, outputs)
         ops = self.operators(outputs)
+        self.input_at = {v.name: i for i, v in enumerate(inputs)}
+        self.output_at = {v.name: i for i, v in enumerate(outputs)}
         rules = self.rules(inputs, outputs)
         name = p.fb_name if p.fb_name is not None else "fuzzy"
         if p.fb_name is None:
