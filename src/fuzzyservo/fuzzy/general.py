@@ -1041,14 +1041,20 @@ def _signature(y: float, ints: IntArray, f: FloatArray, first: int, n_items: int
     total = 0.0
     for i in range(n_items):
         t = first + lab[i]
-        mu = mf_value(ints[tt + 3 * t], f, ints[tt + 3 * t + 1], ints[tt + 3 * t + 2], y)
+        code = ints[tt + 3 * t]
+        off = ints[tt + 3 * t + 1]
+        mu = mf_value(code, f, off, ints[tt + 3 * t + 2], y)
         clipped = impl == 0 and mu >= h[i]
         v = min(h[i], mu) if impl == 0 else h[i] * mu
         total += v
         if v > best:
             best = v
             arg = i
-        key = key * 1000003 + (1 if clipped else 0) + (2 if mu > 0.0 else 0)
+        # a dsigmoid |sig1 - sig2| bends where its sigmoids cross (at no parameter)
+        bend = code == _DSIG and _sigmoid(y, f[off], f[off + 1]) >= \
+            _sigmoid(y, f[off + 3], f[off + 2])
+        key = key * 1000003 + (1 if clipped else 0) + (2 if mu > 0.0 else 0) + \
+            (4 if bend else 0)
     if agg == 0:
         key = key * 1000003 + arg
     elif agg == 1:
