@@ -905,6 +905,20 @@ def test_dsigmoid_bend_is_a_piece_boundary(defuzzifier: str) -> None:
     assert_mp(system, [[0.3345311121081156]], dps=20)
 
 
+@pytest.mark.parametrize(("defuzzifier", "value"), [
+    ("som", -1.4726463844023334), ("lom", 3.765901739057053),
+    ("mom", (-1.4726463844023334 + 3.765901739057053) / 2)])
+def test_fully_fired_plateau_ends_at_its_knots(defuzzifier: str, value: float) -> None:
+    # A rule of strength exactly 1 "clips" a term of height 1 nowhere, but mu >= 1 held on
+    # the float-flat shoulders of the plateau (smf is 1 - 2 t^2 there): a piece cut 1.7e-8
+    # beyond the knot c became the largest maximising point (2e-9 of the range).
+    out = Variable("y", (-1.6702824544327264, 7.005912949860138), (Term(
+        "p", "pi", (-2.456312312092072, -1.4726463844023334, 3.765901739057053,
+                    7.008031742631984)),))
+    system = FuzzySystem(inputs=(FULL,), outputs=(out,), defuzzifier=defuzzifier,
+                         rules=(Rule(Is(0, 0), (Consequent(0, 0),)),))
+    assert evaluate(system, [0.5])[0] == pytest.approx(value, rel=0, abs=4e-16)  # rounding
+
 
 
 @pytest.mark.slow

@@ -1044,7 +1044,9 @@ def _signature(y: float, ints: IntArray, f: FloatArray, first: int, n_items: int
         code = ints[tt + 3 * t]
         off = ints[tt + 3 * t + 1]
         mu = mf_value(code, f, off, ints[tt + 3 * t + 2], y)
-        clipped = impl == 0 and mu >= h[i]
+        # strictly above: a rule of strength 1 clips a term of height 1 nowhere, though mu
+        # rounds to 1 on the float-flat shoulders of a plateau (smf is 1 - 2 t^2 there)
+        clipped = impl == 0 and mu > h[i]
         v = min(h[i], mu) if impl == 0 else h[i] * mu
         total += v
         if v > best:
