@@ -1156,8 +1156,26 @@ def _golden_max(a: float, b: float, span: float, ints: IntArray, f: FloatArray, 
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _refine_max(x: float, a: float, b: float, ints: IntArray, f: FloatArray, first: int,
-                n_items: int, lab: IntArray, h: FloatArray) -> float:
+def _newton_max(x: float, d: float, d2: float, ints: IntArray, f: FloatArray, first: int,
+                n_items: int, lab: IntArray, h: FloatArray) -> tuple[float, bool]:
+    """Newton steps from x on the Richardson-extrapolated central difference of step d (the
+    second derivative d2 < 0 held fixed); (root, whether the steps converged)."""
+    xn = x
+    for _ in range(8):
+        g1 = (_g(xn + d, ints, f, first, n_items, lab, h)
+              - _g(xn - d, ints, f, first, n_items, lab, h)) / (2.0 * d)
+        g2 = (_g(xn + 0.5 * d, ints, f, first, n_items, lab, h)
+              - _g(xn - 0.5 * d, ints, f, first, n_items, lab, h)) / d
+        step = -((4.0 * g2 - g1) / 3.0) / d2
+        xn += step
+        if abs(step) <= 1e-3 * d:
+            return xn, True
+    return xn, False
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _refine_max(x: float, a: float, b: float, span: float, ints: IntArray, f: FloatArray,
+                first: int, n_items: int, lab: IntArray, h: FloatArray) -> float:
     """Newton steps on the derivative (central differences, Richardson-extrapolated) from a
     maximum x found in [a, b] by comparing values. A quadratic maximum moves to the
     derivative's zero; at a kink, on a plateau or on a flat top x is kept (as it is when a step
@@ -1185,20 +1203,21 @@ def _refine_max(x: float, a: float, b: float, ints: IntArray, f: FloatArray, fir
         d *= 0.1
     if not quadratic:
         return x
-    xn = x
-    converged = False
-    for _ in range(8):
-        g1 = (_g(xn + d, ints, f, first, n_items, lab, h)
-              - _g(xn - d, ints, f, first, n_items, lab, h)) / (2.0 * d)
-        g2 = (_g(xn + 0.5 * d, ints, f, first, n_items, lab, h)
-              - _g(xn - 0.5 * d, ints, f, first, n_items, lab, h)) / d
-        step = -((4.0 * g2 - g1) / 3.0) / d2
-        xn += step
-        if abs(step) <= 1e-3 * d:
-            converged = True
+    # Newton's roots at steps d and 2 d: the Richardson step leaves a bias d^4 g^(5) / 480
+    # (large near a steep bell's centre), 16 times larger at 2 d, so their difference is 15
+    # times the bias at d; refine d until that is below tol_x (1e-12 of the range), keep x
+    # once rounding (its share eps g / (d |g''|)) would decide
+    tol_x = 1e-12 * span
+    while True:
+        if 4e-16 * gx / (d * -d2) > tol_x:
+            return x
+        xn, converged = _newton_max(x, d, d2, ints, f, first, n_items, lab, h)
+        x2, converged2 = _newton_max(x, 2.0 * d, d2, ints, f, first, n_items, lab, h)
+        if not (converged and converged2):
+            return x
+        if abs(xn - x2) <= 15.0 * tol_x:
             break
-    if not converged:
-        return x
+        d *= 0.1
     xn = min(max(xn, a), b)  # past the bracket: the maximum is at its end (a cut) or beyond
     if _g(xn, ints, f, first, n_items, lab, h) < gx - 4e-16 * gx:
         return x
@@ -1374,7 +1393,7 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
             aa = ys[max(s - 1, 0)]
             bb = ys[min(s + 1, SCAN_CELLS)]
             xm = _golden_max(aa, bb, span, ints, f, first, n_items, lab, h)
-            xr = _refine_max(xm, aa, bb, ints, f, first, n_items, lab, h)
+            xr = _refine_max(xm, aa, bb, span, ints, f, first, n_items, lab, h)
             if xr == xm:
                 # not a smooth maximum (a kink, a plateau's edge, a flat top like a steep
                 # bell's): values tie over a band around it, and it is exact only at a cut
