@@ -489,6 +489,14 @@ class _RuleCtx:
     pos: int = 0
     used_and: _Tok | None = None
     used_or: _Tok | None = None
+    #: term name -> index, per input and per output (a scan per clause made large files
+    #: quadratic)
+    in_terms: list[dict[str, int]] = field(default_factory=list)
+    out_terms: list[dict[str, int]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.in_terms = [{t.name: i for i, t in enumerate(v.terms)} for v in self.input_vars]
+        self.out_terms = [{t.name: i for i, t in enumerate(v.terms)} for v in self.output_vars]
 
     def peek(self) -> _Tok | None:
         return self.toks[self.pos] if self.pos < len(self.toks) else None
@@ -565,11 +573,11 @@ def _proposition(ctx: _RuleCtx, depth: int) -> Expr:
             raise src.error(h.off, f"rule: more than {MAX_DEPTH} nested 'not' and parentheses")
         ctx.pos += 1
     t = ctx.peek()
-    names = [x.name for x in var.terms]
-    if t is None or t.text not in names:
-        raise ctx.expect_what(f"a term of input {var.name!r} ({', '.join(names) or 'none'})")
+    index = ctx.in_terms[v]
+    if t is None or t.text not in index:
+        raise ctx.expect_what(f"a term of input {var.name!r} ({', '.join(index) or 'none'})")
     ctx.pos += 1
-    expr: Expr = Is(v, names.index(t.text), negated=nots > 0)
+    expr: Expr = Is(v, index[t.text], negated=nots > 0)
     for _ in range(nots - 1):
         expr = Not(expr)
     return expr
@@ -597,11 +605,11 @@ def _consequents(ctx: _RuleCtx) -> tuple[Consequent, ...]:
         t = ctx.peek()
         if t is not None and t.text in _HEDGES:
             raise src.error(t.off, f"unsupported: hedge {t.text!r} in a consequent")
-        names = [x.name for x in var.terms]
-        if t is None or t.text not in names:
-            raise ctx.expect_what(f"a term of output {var.name!r} ({', '.join(names) or 'none'})")
+        index = ctx.out_terms[o]
+        if t is None or t.text not in index:
+            raise ctx.expect_what(f"a term of output {var.name!r} ({', '.join(index) or 'none'})")
         ctx.pos += 1
-        out.append(Consequent(o, names.index(t.text)))
+        out.append(Consequent(o, index[t.text]))
         nxt = ctx.peek()
         if nxt is None or nxt.text != "and":
             return tuple(out)

@@ -41,6 +41,7 @@ import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import InputError, ParameterError
+from .partition import eval_partition, partition_tables, scratch_sizes
 from .system import SHAPES, And, Expr, FuzzySystem, Is, Not, Or
 
 __all__ = [
@@ -60,8 +61,10 @@ _PL_CODES = (_TRI, _TRAP, _RECT, _RAMP, _DISC)
 # header of ``ints``
 (H_MAGIC, H_NIN, H_NOUT, H_NTERMS, H_NRULES, H_KIND, H_AND, H_OR, H_IMPL, H_AGG, H_DEFUZZ,
  H_VARS, H_TERMS, H_RULES, H_PROG, H_CONS, H_OUTS, H_WORK, H_STACK, H_FVARS, H_FLAT,
- H_FLATOFF, H_MAXITEMS, H_FWEIGHT, H_PIVOT, H_IWORK) = range(26)
-_HEADER = 26
+ H_FLATOFF, H_MAXITEMS, H_FWEIGHT, H_PIVOT, H_IWORK, H_GRID, H_PART, H_PARTF) = range(29)
+_HEADER = 29
+#: Largest number of cells of the dense rule index (product of the inputs' term counts).
+GRID_MAX_CELLS = 1 << 16
 MAGIC = 20261130
 # output modes
 _M_PL, _M_SING, _M_SMOOTH, _M_SUGENO = range(4)
@@ -443,6 +446,7 @@ def compile_system(system: FuzzySystem) -> CompiledSystem:
                 neg[cl.variable] = 1 if cl.negated else 0
             flat_tab += row + neg
     out_tab: list[int] = []
+    out_lines: list[tuple[FloatArray, FloatArray, FloatArray]] = []
     sup_lists: list[tuple[int, list[int]]] = []
     max_items = 1
     n_cons = max(1, len(cons) // 2)
@@ -464,6 +468,7 @@ def compile_system(system: FuzzySystem) -> CompiledSystem:
                 nz = np.flatnonzero((slope[:, j] != 0.0) | (icpt[:, j] > 0.0))
                 sup += [int(nz[0]), int(nz[-1])] if nz.size else [1, 0]
             out_tab += [mode, bp_off, bp.shape[0], s_off, i_off, n_t, -1]
+            out_lines.append((bp, slope, icpt))
             sup_lists.append((len(out_tab) - 1, sup))
         else:
             out_tab += [mode, 0, 0, 0, 0, n_t, -1]
@@ -486,22 +491,37 @@ def compile_system(system: FuzzySystem) -> CompiledSystem:
     ints[H_FLAT] = flat
     ints[H_MAXITEMS] = max_items
     ints[H_FWEIGHT] = 0
-    ints[H_IWORK] = max_items + len(system.rules)
+    ints[H_IWORK] = max_items + len(system.rules) + n_terms + n_in
     pivot = _pivot_table(system, flat, var_tab)
+    grid = _grid_table(system, flat)
     body: list[int] = []
     for key, tab in ((H_VARS, var_tab), (H_TERMS, term_tab), (H_RULES, rule_tab),
                      (H_PROG, prog), (H_CONS, cons), (H_OUTS, out_tab), (H_FLATOFF, flat_tab),
-                     (H_PIVOT, pivot)):
+                     (H_PIVOT, pivot), (H_GRID, grid)):
         ints[key] = _HEADER + len(body)
         body += tab
     if not pivot:
         ints[H_PIVOT] = -1
+    if not grid:
+        ints[H_GRID] = -1
+    # the fast path of rule tables over fuzzy partitions (fuzzy/partition.py), when it applies
+    part = partition_tables(system, out_lines) if len(out_lines) == n_out else None
+    ints[H_PART] = ints[H_PARTF] = -1
+    if part is not None:
+        ints[H_PART] = _HEADER + len(body)
+        body += part[0]
+        ints[H_PARTF] = len(fl)
+        fl += part[1]
     for pos, sup in sup_lists:
         body[ints[H_OUTS] - _HEADER + pos] = _HEADER + len(body)
         body += sup
     n_cand = 2 + 2 * max_items + 3 * max_items * max_items
     ints[H_WORK] = _work_size(n_in, n_terms, len(system.rules), stack + 1, max_items, max_bp,
                               n_cand)
+    if part is not None:
+        pw, piw = scratch_sizes(system)
+        ints[H_WORK] += pw  # partition scratch after the general layout (rest)
+        ints[H_IWORK] = max(ints[H_IWORK], piw)
     return CompiledSystem(system=system, ints=np.array(ints + body, dtype=np.int64),
                           floats=np.array(fl, dtype=np.float64))
 
@@ -535,6 +555,38 @@ def _pivot_table(system: FuzzySystem, flat: int, var_tab: list[int]) -> list[int
     return []
 
 
+def _grid_table(system: FuzzySystem, flat: int) -> list[int]:
+    """Dense rule index for a flat-AND rule base whose every rule names every input (a rule
+    table): [n_cells, stride per input, (start, count) per cell, rule indices]. The strengths
+    then visit only the cells of the inputs' non-zero terms. Empty if not applicable."""
+    if flat != 1 or not system.rules:
+        return []
+    n_in = len(system.inputs)
+    strides = []
+    cells = 1
+    for v in system.inputs:
+        strides.append(cells)
+        cells *= len(v.terms)
+        if cells > GRID_MAX_CELLS:
+            return []
+    lists: list[list[int]] = [[] for _ in range(cells)]
+    for r, rule in enumerate(system.rules):
+        a = rule.antecedent
+        clauses = [a] if isinstance(a, Is) else list(a.operands)  # type: ignore[union-attr]
+        if len(clauses) != n_in or any(not isinstance(c, Is) or c.negated for c in clauses):
+            return []
+        cell = sum(strides[c.variable] * c.term for c in clauses  # type: ignore[union-attr]
+                   )
+        lists[cell].append(r)
+    tab = [cells, *strides]
+    start = 1 + n_in + 2 * cells
+    idx: list[int] = []
+    for lst in lists:
+        tab += [start + len(idx), len(lst)]
+        idx += lst
+    return tab + idx
+
+
 def _work_size(n_in: int, n_terms: int, n_rules: int, stack: int, items: int, n_bp: int,
                n_cand: int) -> int:
     n_seg = 2 * max(n_bp - 1, 1) * n_cand
@@ -548,7 +600,7 @@ def _work_size(n_in: int, n_terms: int, n_rules: int, stack: int, items: int, n_
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _strengths(ints: IntArray, f: FloatArray, xin: FloatArray, mu: FloatArray,
-               w: FloatArray, stk: FloatArray, fired: IntArray) -> int:
+               w: FloatArray, stk: FloatArray, fired: IntArray, nz: IntArray) -> int:
     """Input memberships mu (global term index), rule strengths w (weight applied) and the
     list of rules that fired (w > 0); returns their number. w is valid for fired rules."""
     n_in = ints[H_NIN]
@@ -565,6 +617,53 @@ def _strengths(ints: IntArray, f: FloatArray, xin: FloatArray, mu: FloatArray,
     or_op = ints[H_OR]
     flat = ints[H_FLAT]
     nf = 0
+    gt = ints[H_GRID]
+    if gt >= 0:
+        # a rule table: visit the cells of the non-zero terms (odometer over the inputs)
+        # nz[0:n_in] = number of non-zero terms per input, then their local indices
+        pos = n_in
+        for i in range(n_in):
+            first = ints[vt + 2 * i]
+            cnt = 0
+            for tl in range(ints[vt + 2 * i + 1]):
+                if mu[first + tl] > 0.0:
+                    nz[pos + cnt] = tl
+                    cnt += 1
+            if cnt == 0:
+                return 0
+            nz[i] = cnt
+            pos += cnt
+        # every combination of non-zero terms, as a mixed-radix counter
+        total = 1
+        for i in range(n_in):
+            total *= nz[i]
+        for combo in range(total):
+            rem = combo
+            pos = n_in
+            cell = 0
+            acc = 1.0
+            for i in range(n_in):
+                d = rem % nz[i]
+                rem //= nz[i]
+                tl = nz[pos + d]
+                pos += nz[i]
+                cell += ints[gt + 1 + i] * tl
+                v = mu[ints[vt + 2 * i] + tl]
+                if and_op == 0:
+                    if v < acc:
+                        acc = v
+                else:
+                    acc *= v
+            ce = gt + 1 + n_in + 2 * cell
+            st = gt + ints[ce]
+            for q in range(ints[ce + 1]):
+                r = ints[st + q]
+                wr = acc * f[ints[H_FWEIGHT] + r]
+                if wr > 0.0:
+                    w[r] = wr
+                    fired[nf] = r
+                    nf += 1
+        return nf
     pv = ints[H_PIVOT]
     if pv >= 0:
         # flat AND with a pivot input named by every rule: only its non-zero terms' rules
@@ -1486,9 +1585,19 @@ def eval_point(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray,
             elif v > hi:
                 v = hi
         xin[i] = v
+    if ints[H_PART] >= 0:
+        eval_partition(xin, ints[ints[H_PART]:], f[ints[H_PARTF]:], out, rest, iw)
+        for o in range(n_out):
+            fv = fvo + 4 * (n_in + o)
+            if out[o] != out[o]:
+                out[o] = f[fv + 2]
+            elif f[fv + 3] != 0.0:
+                out[o] = min(max(out[o], f[fv]), f[fv + 1])
+        return
     lab = iw[:items]
     fired = iw[items:items + n_rules]
-    nf = _strengths(ints, f, xin, mu, w, stk, fired)
+    nz = iw[items + n_rules:]
+    nf = _strengths(ints, f, xin, mu, w, stk, fired, nz)
     ot = ints[H_OUTS]
     impl = ints[H_IMPL]
     agg = ints[H_AGG]
