@@ -575,8 +575,7 @@ def _grid_table(system: FuzzySystem, flat: int) -> list[int]:
         clauses = [a] if isinstance(a, Is) else list(a.operands)  # type: ignore[union-attr]
         if len(clauses) != n_in or any(not isinstance(c, Is) or c.negated for c in clauses):
             return []
-        cell = sum(strides[c.variable] * c.term for c in clauses  # type: ignore[union-attr]
-                   )
+        cell = sum(strides[c.variable] * c.term for c in clauses if isinstance(c, Is))
         lists[cell].append(r)
     tab = [cells, *strides]
     start = 1 + n_in + 2 * cells
@@ -1282,11 +1281,11 @@ def _refine_max(x: float, a: float, b: float, span: float, ints: IntArray, f: Fl
     gx = _g(x, ints, f, first, n_items, lab, h)
     if not gx > 0.0:
         return x
-    # the step: from 1e-2 of the bracket down until the second difference is the same at half
-    # the step (the quadratic part of a smooth maximum); a kink (it doubles) or a flat top
-    # like a steep bell's (it grows by 2^(p-2)) never gets there before rounding dominates:
-    # keep x
-    d = 1e-2 * (b - a)
+    # the step: from a quarter of the bracket down until the second difference is the same
+    # at half the step (the quadratic part of a smooth maximum); a kink (it doubles) or a
+    # flat top like a steep bell's (it grows by 2^(p-2)) never gets there before rounding
+    # dominates: keep x
+    d = 0.25 * (b - a)
     d2 = 0.0
     quadratic = False
     for _ in range(12):
@@ -1304,11 +1303,11 @@ def _refine_max(x: float, a: float, b: float, span: float, ints: IntArray, f: Fl
         return x
     # Newton's roots at steps d and 2 d: the Richardson step leaves a bias d^4 g^(5) / 480
     # (large near a steep bell's centre), 16 times larger at 2 d, so their difference is 15
-    # times the bias at d; refine d until that is below tol_x (1e-12 of the range), keep x
-    # once rounding (its share eps g / (d |g''|)) would decide
-    tol_x = 1e-12 * span
+    # times the bias at d; refine d until that is below tol_x (1e-11 of the range), keep x
+    # once rounding (its share, about eps g / (d |g''|)) would decide
+    tol_x = 1e-11 * span
     while True:
-        if 4e-16 * gx / (d * -d2) > tol_x:
+        if 2e-16 * gx / (d * -d2) > tol_x:
             return x
         xn, converged = _newton_max(x, d, d2, ints, f, first, n_items, lab, h)
         x2, converged2 = _newton_max(x, 2.0 * d, d2, ints, f, first, n_items, lab, h)

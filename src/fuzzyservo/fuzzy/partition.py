@@ -255,6 +255,12 @@ def _g2(y: float, m1: float, c1: float, a: float, m2: float, c2: float, b: float
     if f2 < 0.0:
         f2 = 0.0
     if impl == 0:
+        # at a clip crossing c + m y is the clip height up to its rounding (eps |c|, a large
+        # relative error for a weakly fired rule): take the height, so the plateau stays flat
+        if abs(f1 - a) <= 1e-15 * (abs(c1) + abs(m1 * y)):
+            f1 = a
+        if abs(f2 - b) <= 1e-15 * (abs(c2) + abs(m2 * y)):
+            f2 = b
         f1 = min(a, f1)
         f2 = min(b, f2)
     else:
