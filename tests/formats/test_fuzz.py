@@ -196,8 +196,6 @@ def parsed_systems(draw: st.DrawFn, fmt: str) -> FuzzySystem:
     return loads(text, fmt)
 
 
-@pytest.mark.xfail(reason="the evaluator writes past a buffer in general._smooth (see "
-                          "test_smooth_quadrature_stays_in_its_buffer); remove when fixed")
 @pytest.mark.parametrize("fmt", FORMATS)
 @settings(FUZZ, max_examples=60, phases=[Phase.explicit, Phase.generate])
 @given(data=st.data())
@@ -227,9 +225,9 @@ def _one_rule(out: Variable, term: Term, aggregation: str = "max", weight: float
 
 
 #: Systems on which the fuzzer found the evaluator aborting ("double free or corruption"):
-#: with NUMBA_DISABLE_JIT=1 each raises IndexError at ``acc_a[n_acc] = a`` in
-#: ``general._smooth``: once ``n_acc`` reaches the buffer's capacity every interval still
-#: on the stack is accepted and written past its end.
+#: with NUMBA_DISABLE_JIT=1 each raised IndexError at ``acc_a[n_acc] = a`` in
+#: ``general._smooth``: once ``n_acc`` reached the buffer's capacity every interval still on
+#: the stack was accepted and written past its end (now the record grows).
 SMOOTH_OVERFLOW = {
     "huge range, probor": _one_rule(Variable("y", (-1e300, 1e300), ()), Term(
         "b", "triangle", (-1e300, 0.0, 1e300)), "probor"),
@@ -238,14 +236,11 @@ SMOOTH_OVERFLOW = {
 }
 
 
-@pytest.mark.xfail(strict=True, reason="general._smooth writes past its buffer (reported)")
 @pytest.mark.parametrize("case", sorted(SMOOTH_OVERFLOW))
 def test_smooth_quadrature_stays_in_its_buffer(case: str, evaluator: EvalWorker) -> None:
     evaluator(SMOOTH_OVERFLOW[case], np.array([[0.25], [0.5]]))
 
 
-@pytest.mark.xfail(strict=True, reason="the evaluator's centroid overflows for a range of "
-                                       "1e160 (reported)")
 def test_centroid_of_a_symmetric_set_on_a_huge_range() -> None:
     # analytic: the centroid of a triangle symmetric about 0 is 0, whatever the scale; the
     # tolerance is the rounding of a value of the range's size

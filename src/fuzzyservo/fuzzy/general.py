@@ -965,16 +965,20 @@ def _defuzz_segments(n_seg: int, su: FloatArray, sv: FloatArray, gu: FloatArray,
     moment = 0.0
     gmax = 0.0
     ref = su[0] if n_seg > 0 else 0.0
+    # the moment in units of the span (a product of two abscissae overflows past 1e154)
+    span = sv[n_seg - 1] - ref if n_seg > 0 else 1.0
+    if not span > 0.0:
+        span = 1.0
     for s in range(n_seg):
-        u = su[s] - ref
-        v = sv[s] - ref
-        area += 0.5 * (v - u) * (gu[s] + gv[s])
+        u = (su[s] - ref) / span
+        v = (sv[s] - ref) / span
         moment += (v - u) * (u * (2.0 * gu[s] + gv[s]) + v * (gu[s] + 2.0 * gv[s])) / 6.0
+        area += 0.5 * (sv[s] - su[s]) * (gu[s] + gv[s])
         gmax = max(gmax, gu[s], gv[s])
     if not area > 0.0:
         return np.nan
     if mode == 0:
-        return ref + moment / area
+        return ref + span * (moment * span) / area
     if mode == 1:
         # in units of the largest value: the quadratic squares the values (no underflow)
         sc = 1.0 / gmax
@@ -1208,8 +1212,11 @@ def _gk(a: float, b: float, c0: float, ints: IntArray, f: FloatArray, first: int
     gc = _g(cen, ints, f, first, n_items, lab, h)
     ka = wgk[7] * gc
     ga = wg[3] * gc
-    km = wgk[7] * gc * (cen - c0)
-    gm = wg[3] * gc * (cen - c0)
+    # the moment of (y - c0) / (b - a) (no overflow for abscissae past 1e154): the caller
+    # multiplies by the interval's width
+    inv = 1.0 / (b - a)
+    km = wgk[7] * gc * (cen - c0) * inv
+    gm = wg[3] * gc * (cen - c0) * inv
     for j in range(7):
         dx = hl * xgk[j]
         y1 = cen - dx
@@ -1217,10 +1224,10 @@ def _gk(a: float, b: float, c0: float, ints: IntArray, f: FloatArray, first: int
         g1 = _g(y1, ints, f, first, n_items, lab, h)
         g2 = _g(y2, ints, f, first, n_items, lab, h)
         ka += wgk[j] * (g1 + g2)
-        km += wgk[j] * (g1 * (y1 - c0) + g2 * (y2 - c0))
+        km += wgk[j] * (g1 * (y1 - c0) + g2 * (y2 - c0)) * inv
         if j % 2 == 1:
             ga += wg[j // 2] * (g1 + g2)
-            gm += wg[j // 2] * (g1 * (y1 - c0) + g2 * (y2 - c0))
+            gm += wg[j // 2] * (g1 * (y1 - c0) + g2 * (y2 - c0)) * inv
     return ka * hl, ga * hl, km * hl, gm * hl
 
 
@@ -1418,11 +1425,24 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
             b = stack_b[sp]
             ka, ga, km, gm = _gk(a, b, c0, ints, f, first, n_items, lab, h, xgk, wgk, wg)
             tol = QUAD_RTOL * a0 * (b - a) / span
-            ok = abs(ka - ga) <= tol and abs(km - gm) <= tol * span
+            # km, gm: moments of (y - c0) / (b - a); tol span / (b - a) is QUAD_RTOL a0
+            ok = abs(ka - ga) <= tol and abs(km - gm) <= QUAD_RTOL * a0
             mid = 0.5 * (a + b)
-            if ok or sp >= 254 or n_acc >= cap - 1 or not (a < mid < b):
+            if ok or sp >= 254 or n_acc >= cap or not (a < mid < b):
                 area += ka
-                mom += km
+                mom += km * ((b - a) / span)  # in units of the span
+                if n_acc == acc_a.shape[0]:
+                    # past the subdivision budget every interval left on the stack is
+                    # accepted: the record of accepted intervals grows instead of overflowing
+                    grown = np.empty(2 * n_acc)
+                    grown[:n_acc] = acc_a
+                    acc_a = grown
+                    grown = np.empty(2 * n_acc)
+                    grown[:n_acc] = acc_b
+                    acc_b = grown
+                    grown = np.empty(2 * n_acc)
+                    grown[:n_acc] = acc_area
+                    acc_area = grown
                 acc_a[n_acc] = a
                 acc_b[n_acc] = b
                 acc_area[n_acc] = ka
@@ -1436,7 +1456,7 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
     if not area > 0.0:
         return np.nan
     if mode == 0:
-        return c0 + mom / area
+        return c0 + span * (mom / area)
     if mode == 1:
         half = 0.5 * area
         cum = 0.0

@@ -271,8 +271,10 @@ def _g2(y: float, m1: float, c1: float, a: float, m2: float, c2: float, b: float
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _interval(p: float, q: float, m1: float, c1: float, a: float, m2: float, c2: float,
-              b: float, impl: int, ref: float, cand: FloatArray) -> tuple[float, float]:
-    """Area and first moment (about ``ref``) of max(impl(a, F), impl(b, R)) on [p, q]."""
+              b: float, impl: int, ref: float, scale: float, cand: FloatArray
+              ) -> tuple[float, float]:
+    """Area and first moment of max(impl(a, F), impl(b, R)) on [p, q]; the moment of
+    (y - ref) ``scale`` (1 / the range: no overflow for abscissae past 1e154)."""
     cand[0] = p
     n = 1
     if impl == 0:
@@ -307,8 +309,8 @@ def _interval(p: float, q: float, m1: float, c1: float, a: float, m2: float, c2:
         gv = _g2(v, m1, c1, a, m2, c2, b, impl)
         w = v - u
         if w > 0.0 and (gu > 0.0 or gv > 0.0):
-            uu = u - ref
-            vv = v - ref
+            uu = (u - ref) * scale
+            vv = (v - ref) * scale
             area += 0.5 * w * (gu + gv)
             mom += w * (uu * (2.0 * gu + gv) + vv * (gu + 2.0 * gv)) / 6.0
         u = v
@@ -436,6 +438,8 @@ def eval_partition(x: FloatArray, pi: IntArray, pf: FloatArray, out: FloatArray,
         area = 0.0
         mom = 0.0
         ref = pf[bp_off]
+        span = pf[bp_off + n_int] - ref
+        scale = 1.0 / span
         for k in range(k0, k1 + 1):
             j1 = pi[pairs + 3 * k]
             j2 = pi[pairs + 3 * k + 1]
@@ -448,12 +452,12 @@ def eval_partition(x: FloatArray, pi: IntArray, pf: FloatArray, out: FloatArray,
                 w = pf[bp_off + k + 1] - p
                 ar, mo = segment_integrals(a, b)
                 area += w * ar
-                mom += w * ((p - ref) * ar + w * mo)
+                mom += w * ((p - ref) * scale * ar + (w * scale) * mo)
                 continue
             lo4 = line_off + 4 * k
             ar, mo = _interval(pf[bp_off + k], pf[bp_off + k + 1], pf[lo4], pf[lo4 + 1], a,
-                               pf[lo4 + 2], pf[lo4 + 3], b, impl, ref, cand)
+                               pf[lo4 + 2], pf[lo4 + 3], b, impl, ref, scale, cand)
             area += ar
             mom += mo
-        out[o] = ref + mom / area if area > 0.0 else np.nan
+        out[o] = ref + span * (mom / area) if area > 0.0 else np.nan
         ho += n_t
