@@ -32,6 +32,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from fuzzyservo.errors import InputError, ParameterError
+from fuzzyservo.fuzzy import general
 from fuzzyservo.fuzzy.general import (
     compile_system,
     eval_batch,
@@ -470,6 +471,82 @@ def pl_system(draw: st.DrawFn, kind: str | None = None) -> FuzzySystem:
                        and_op=draw(st.sampled_from(["min", "product"])),
                        or_op=draw(st.sampled_from(["max", "probor"])),
                        defuzzifier=defuzz, **ops)
+
+
+@st.composite
+def continuous_term(draw: st.DrawFn, name: str, lo: float, hi: float) -> Term:
+    """A piecewise-linear term without a jump."""
+    shape = draw(st.sampled_from(["triangle", "trapezoid", "ramp", "discrete"]))
+    w = hi - lo
+    xs = sorted(set(draw(st.lists(coordinate(lo, hi), min_size=4, max_size=4))))
+    while len(xs) < 4:
+        xs.append(xs[-1] + w / 8)
+    h = draw(HEIGHT)
+    if shape == "triangle":
+        return Term(name, shape, (xs[0], xs[1], xs[2]), h)
+    if shape == "trapezoid":
+        a, d = xs[0], xs[3]
+        side = draw(st.sampled_from(["none", "left", "right"]))
+        return Term(name, shape, (-math.inf if side == "left" else a, xs[1], xs[2],
+                                  math.inf if side == "right" else d), h)
+    if shape == "ramp":
+        a, b = xs[0], xs[2]
+        return Term(name, shape, (a, b) if draw(st.booleans()) else (b, a), h)
+    ys = draw(st.lists(UNIT, min_size=4, max_size=4))
+    return Term(name, shape, tuple(v for p in zip(xs, ys, strict=True) for v in p), h)
+
+
+@st.composite
+def partition_variable(draw: st.DrawFn, name: str) -> Variable:
+    """Output terms of which at most two are non-zero anywhere: a fuzzy partition over
+    sorted peaks (uneven, shoulders or feet at the ends, heights)."""
+    lo, hi = draw(variable_range())
+    n = draw(st.integers(2, 5))
+    peaks = sorted(set(draw(st.lists(coordinate(lo, hi), min_size=n, max_size=n))))
+    if len(peaks) < 2:
+        peaks = [lo, hi]
+    terms = []
+    for k, c in enumerate(peaks):
+        left = peaks[k - 1] if k > 0 else None
+        right = peaks[k + 1] if k + 1 < len(peaks) else None
+        h = draw(st.sampled_from([1.0, 1.0, 0.75]))
+        if left is None:
+            terms.append(Term(f"o{k}", "trapezoid", (-math.inf, c, c, right), h)
+                         if draw(st.booleans()) else
+                         Term(f"o{k}", "triangle", (c - (right - c), c, right), h))
+        elif right is None:
+            terms.append(Term(f"o{k}", "trapezoid", (left, c, c, math.inf), h)
+                         if draw(st.booleans()) else
+                         Term(f"o{k}", "triangle", (left, c, c + (c - left)), h))
+        else:
+            terms.append(Term(f"o{k}", "triangle", (left, c, right), h))
+    return Variable(name, (lo, hi), tuple(terms),
+                    default=draw(st.sampled_from([math.nan, lo])))
+
+
+@st.composite
+def table_system(draw: st.DrawFn) -> FuzzySystem:
+    """A rule table over continuous inputs and partition outputs, max aggregation, centroid:
+    the form of the evaluator's fast path (fuzzy/partition.py)."""
+    n_in = draw(st.integers(2, 3))
+    inputs = []
+    for i in range(n_in):
+        lo, hi = draw(variable_range())
+        terms = tuple(draw(continuous_term(f"t{k}", lo, hi))
+                      for k in range(draw(st.integers(1, 3))))
+        inputs.append(Variable(f"x{i}", (lo, hi), terms, clip=draw(st.booleans())))
+    outputs = tuple(draw(partition_variable(f"y{k}")) for k in range(draw(st.integers(1, 2))))
+    rules = []
+    for _ in range(draw(st.integers(1, 8))):
+        ante = draw(flat_rule(tuple(inputs), "table"))
+        ks = draw(st.lists(st.integers(0, len(outputs) - 1), min_size=1, max_size=2,
+                           unique=True))
+        cons = tuple(Consequent(k, draw(st.integers(0, len(outputs[k].terms) - 1)))
+                     for k in ks)
+        rules.append(Rule(ante, cons, draw(WEIGHT)))
+    return FuzzySystem(inputs=tuple(inputs), outputs=outputs, rules=tuple(rules),
+                       and_op=draw(st.sampled_from(["min", "product"])),
+                       implication=draw(st.sampled_from(["min", "product"])))
 
 
 @st.composite
@@ -1037,3 +1114,20 @@ def test_bad_inputs_are_refused() -> None:
         evaluate(FIXED, [["a", "b"]])
     with pytest.raises(ParameterError, match="FuzzySystem"):
         compile_system("not a system")  # type: ignore[arg-type]
+
+
+@settings(max_examples=150, deadline=None, derandomize=True, database=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@given(st.data())
+def test_random_rule_tables_over_partitions_are_exact(data: st.DataObject) -> None:
+    # the evaluator's fast path for this form (fuzzy/partition.py) against exact arithmetic
+    system = data.draw(table_system())
+    assert_exact(system, data.draw(points(system)))
+
+
+def test_the_paper_form_takes_the_fast_path_and_is_exact() -> None:
+    # the test above means the fast path: check that a system of that form takes it
+    system = from_mamdani(du_system())
+    assert general.compile_system(system).ints[general.H_PART] >= 0
+    pts = np.random.default_rng(8).uniform(-1.2, 1.2, (40, 2))
+    assert_exact(system, [*pts.tolist(), [1 / 3, -2 / 3], [0.0, 1.0]])
