@@ -164,9 +164,10 @@ def add_system_arguments(parser: argparse.ArgumentParser | Any) -> None:
                              "cover every (e, Δe)")
 
 
-def systems_from_args(args: argparse.Namespace, kind: str) -> dict[str, Any] | None:
+def systems_from_args(args: argparse.Namespace, kind: str | None) -> dict[str, Any] | None:
     """The fuzzy systems of ``--du-system`` / ``--alpha-system`` for controller ``kind``
-    (the paper's for a role not given), or None when neither is given.
+    (None: for every controller of the registry, as the study runs them), the paper's for a
+    role not given; None when neither option is given.
 
     Raises
     ------
@@ -184,7 +185,8 @@ def systems_from_args(args: argparse.Namespace, kind: str) -> dict[str, Any] | N
             raise ParameterError("--no-rule-value applies to a system from a file: add "
                                  "--du-system or --alpha-system")
         return None
-    needs = controller_kind(kind).systems
+    needs = controller_kind(kind).systems if kind is not None else tuple(
+        dict.fromkeys(r for n in controller_names() for r in controller_kind(n).systems))
     out: dict[str, Any] = {}
     for role, path in given.items():
         if path is None:

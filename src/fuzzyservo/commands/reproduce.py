@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
             f"--duration must be at least {MIN_DURATION:g} s so that the claims can be judged "
             f"on settled responses, got {args.duration!r}")
     params = params_from_args(args)
-    systems = systems_from_args(args, "stfpi")
+    systems = systems_from_args(args, None)  # for every fuzzy controller of the study
     record = systems_record(systems)
     from_files = tuple((role, systems[role]) for role, _, _ in record) if systems else ()
     cfg = StudyConfig(params=params, set_name=set_name(args), duration=args.duration,
