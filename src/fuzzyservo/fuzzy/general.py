@@ -1578,10 +1578,29 @@ def eval_point(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray,
             for o in range(n_out):
                 out[o] = np.nan
             return
+    xin = work[:n_in]
+    for i in range(n_in):
+        v = x[i]
+        if f[fvo + 4 * i + 3] != 0.0:
+            lo = f[fvo + 4 * i]
+            hi = f[fvo + 4 * i + 1]
+            if v < lo:
+                v = lo
+            elif v > hi:
+                v = hi
+        xin[i] = v
+    if ints[H_PART] >= 0:
+        eval_partition(xin, ints[ints[H_PART]:], f[ints[H_PARTF]:], out, work[n_in:], iw)
+        for o in range(n_out):
+            fv = fvo + 4 * (n_in + o)
+            if out[o] != out[o]:
+                out[o] = f[fv + 2]
+            elif f[fv + 3] != 0.0:
+                out[o] = min(max(out[o], f[fv]), f[fv + 1])
+        return
     n_terms = ints[H_NTERMS]
     n_rules = ints[H_NRULES]
     items = ints[H_MAXITEMS]
-    xin = work[:n_in]
     pos = n_in
     mu = work[pos:pos + n_terms]
     pos += n_terms
@@ -1594,25 +1613,6 @@ def eval_point(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray,
     h = work[pos:pos + items]
     pos += items
     rest = work[pos:]
-    for i in range(n_in):
-        v = x[i]
-        if f[fvo + 4 * i + 3] != 0.0:
-            lo = f[fvo + 4 * i]
-            hi = f[fvo + 4 * i + 1]
-            if v < lo:
-                v = lo
-            elif v > hi:
-                v = hi
-        xin[i] = v
-    if ints[H_PART] >= 0:
-        eval_partition(xin, ints[ints[H_PART]:], f[ints[H_PARTF]:], out, rest, iw)
-        for o in range(n_out):
-            fv = fvo + 4 * (n_in + o)
-            if out[o] != out[o]:
-                out[o] = f[fv + 2]
-            elif f[fv + 3] != 0.0:
-                out[o] = min(max(out[o], f[fv]), f[fv + 1])
-        return
     lab = iw[:items]
     fired = iw[items:items + n_rules]
     nz = iw[items + n_rules:]
@@ -1716,13 +1716,15 @@ def _eval_parallel(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def eval_first2(x1: float, x2: float, ints: IntArray, f: FloatArray) -> float:
     """First output of a two-input system at (x1, x2): the call of the controllers' loops."""
-    work = np.empty(ints[H_WORK])
-    x = np.empty(2)
+    # one float and one integer allocation per call: the point and the outputs live in the
+    # float scratch's tail
+    n_out = ints[H_NOUT]
+    buf = np.empty(ints[H_WORK] + 2 + n_out)
+    x = buf[ints[H_WORK]:ints[H_WORK] + 2]
+    out = buf[ints[H_WORK] + 2:]
     x[0] = x1
     x[1] = x2
-    out = np.empty(ints[H_NOUT])
-    iw = np.empty(ints[H_IWORK], dtype=np.int64)
-    eval_point(ints, f, x, out, work, iw)
+    eval_point(ints, f, x, out, buf[:ints[H_WORK]], np.empty(ints[H_IWORK], dtype=np.int64))
     return out[0]
 
 
