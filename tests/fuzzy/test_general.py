@@ -1132,3 +1132,15 @@ def test_the_paper_form_takes_the_fast_path_and_is_exact() -> None:
     assert general.compile_system(system).ints[general.H_PART] >= 0
     pts = np.random.default_rng(8).uniform(-1.2, 1.2, (40, 2))
     assert_exact(system, [*pts.tolist(), [1 / 3, -2 / 3], [0.0, 1.0]])
+
+
+def test_probor_of_one_is_one_so_not_of_it_fires_nothing() -> None:
+    # NOT (NOT t0 OR t2) at a point where t0 = 0: probor(1, t2) is exactly 1 and the rule must
+    # not fire; the sum form 1 + t2 - t2 rounded to 1 - 1e-16 in some compiled contexts and a
+    # rule fired at 1e-16 (found by the random systems against exact arithmetic)
+    x0 = Variable("x0", (0.0, 9.0), (Term("t0", "triangle", (0.0, 0.0, 2.25)),
+                                      Term("t2", "triangle", (0.0, 0.0, 10.0))), clip=False)
+    y = Variable("y0", (0.0, 1.0), (Term("o0", "triangle", (0.0, 0.0, 0.25)),))
+    s = FuzzySystem(inputs=(x0,), outputs=(y,), or_op="probor", defuzzifier="bisector",
+                    rules=(Rule(Not(Or((Is(0, 0, True), Is(0, 1)))), (Consequent(0, 0),)),))
+    assert np.isnan(evaluate(s, [[2.25]])[0, 0])

@@ -732,7 +732,7 @@ def _strengths(ints: IntArray, f: FloatArray, xin: FloatArray, mu: FloatArray,
                         if v > acc:
                             acc = v
                     else:
-                        acc = acc + v - acc * v
+                        acc = _probor(acc, v)
             w[r] = acc * f_weight(ints, f, r)
             if w[r] > 0.0:
                 fired[nf] = r
@@ -765,7 +765,7 @@ def _strengths(ints: IntArray, f: FloatArray, xin: FloatArray, mu: FloatArray,
                     if op == _OP_AND:
                         acc = min(acc, v) if and_op == 0 else acc * v
                     else:
-                        acc = max(acc, v) if or_op == 0 else acc + v - acc * v
+                        acc = max(acc, v) if or_op == 0 else _probor(acc, v)
                 stk[base] = acc
                 sp = base + 1
                 k += 2
@@ -774,6 +774,16 @@ def _strengths(ints: IntArray, f: FloatArray, xin: FloatArray, mu: FloatArray,
             fired[nf] = r
             nf += 1
     return nf
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _probor(a: float, b: float) -> float:
+    """a + b - a b, exact at the ends: 1 - (1 - a)(1 - b) once either is >= 1/2 (so that
+    probor(1, b) is 1 and NOT of it 0, whatever b), else the sum form (no loss for small
+    values)."""
+    if a >= 0.5 or b >= 0.5:
+        return 1.0 - (1.0 - a) * (1.0 - b)
+    return a + b - a * b
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -1065,7 +1075,7 @@ def _singletons(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArr
         elif agg == 2:
             hts[j] += v
         else:
-            hts[j] = hts[j] + v - hts[j] * v
+            hts[j] = _probor(hts[j], v)
     num = 0.0
     den = 0.0
     gmax = 0.0
@@ -1122,7 +1132,7 @@ def _g(y: float, ints: IntArray, f: FloatArray, first: int, n_items: int, lab: I
             if v > acc:
                 acc = v
         elif agg == 3:
-            acc = acc + v - acc * v
+            acc = _probor(acc, v)
         else:
             acc += v
     if agg == 1 and acc > 1.0:
