@@ -1144,3 +1144,12 @@ def test_probor_of_one_is_one_so_not_of_it_fires_nothing() -> None:
     s = FuzzySystem(inputs=(x0,), outputs=(y,), or_op="probor", defuzzifier="bisector",
                     rules=(Rule(Not(Or((Is(0, 0, True), Is(0, 1)))), (Consequent(0, 0),)),))
     assert np.isnan(evaluate(s, [[2.25]])[0, 0])
+
+
+def test_mean_of_maxima_of_isolated_peaks_with_a_vertical_edge() -> None:
+    # the clip point of a line through a peak lands 1e-16 beside it: that sliver was taken as
+    # a plateau (mom -1 instead of 0.45); the old engine's analytic case, (-1 + 1.9) / 2
+    from tests.fuzzy.test_mamdani import _system
+
+    s = from_mamdani(_system(defuzz="mean_of_maxima"))
+    assert evaluate(s, [[2.0, -1.5]])[0, 0] == pytest.approx(0.45, abs=1e-15)

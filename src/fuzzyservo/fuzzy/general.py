@@ -1015,8 +1015,11 @@ def _defuzz_segments(n_seg: int, su: FloatArray, sv: FloatArray, gu: FloatArray,
     if mode == 2:
         plen = 0.0
         pmom = 0.0
+        # a plateau shorter than 1e-12 of the support is a peak's rounding (the clip point of
+        # a line through the peak lands 1e-16 beside it), not a set of positive length
+        minlen = 1e-12 * (sv[n_seg - 1] - su[0])
         for s in range(n_seg):
-            if gu[s] >= gmax - tol and gv[s] >= gmax - tol:
+            if gu[s] >= gmax - tol and gv[s] >= gmax - tol and sv[s] - su[s] > minlen:
                 plen += sv[s] - su[s]
                 pmom += 0.5 * (sv[s] - su[s]) * (sv[s] + su[s])
         if plen > 0.0:
@@ -1025,11 +1028,11 @@ def _defuzz_segments(n_seg: int, su: FloatArray, sv: FloatArray, gu: FloatArray,
         tot = 0.0
         last = -np.inf
         for s in range(n_seg):
-            if gu[s] >= gmax - tol and su[s] > last:
+            if gu[s] >= gmax - tol and su[s] > last + minlen:
                 cnt += 1
                 tot += su[s]
                 last = su[s]
-            if gv[s] >= gmax - tol and sv[s] > last:
+            if gv[s] >= gmax - tol and sv[s] > last + minlen:
                 cnt += 1
                 tot += sv[s]
                 last = sv[s]
