@@ -19,6 +19,7 @@ ALLOWED: dict[str, set[str]] = {
     "analysis": {"registry", "sim", "control", "plant", "fuzzy", "formats"},
     "files": {"analysis", "registry", "sim", "control", "plant", "fuzzy", "formats"},
     "plots": {"analysis", "sim", "control", "plant", "fuzzy", "formats", "paper"},
+    "export": {"registry", "control", "fuzzy", "formats", "plant", "sim", "paper"},
     "study": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis",
               "files", "plots"},
 }

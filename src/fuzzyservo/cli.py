@@ -44,6 +44,7 @@ COMMANDS: tuple[str, ...] = (
     "linearize",
     "surface",
     "fis",
+    "export",
     "reproduce",
 )
 
@@ -184,6 +185,7 @@ def _run(argv: Sequence[str] | None) -> int:
         _numba_cache_best_effort()
         parser = build_parser()
         args = parser.parse_args(argv)
+        args.argv = list(sys.argv[1:] if argv is None else argv)  # recorded by some outputs
         status: int = args.handler(args)
         sys.stdout.flush()
     except BrokenPipeError:

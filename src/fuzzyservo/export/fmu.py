@@ -1,0 +1,597 @@
+"""FMI 2.0 co-simulation FMUs of a controller and of the servo, built from the generated C.
+
+An FMU is a zip archive: ``modelDescription.xml``, the shared library compiled here for 64-bit
+Linux (``binaries/linux64``) with the system C compiler, and the C sources (``sources/``,
+listed in the model description, so a tool can compile them for another platform). Nothing
+in it needs Python at run time.
+
+Timing (docs/export.md, "FMUs"): both FMUs are sampled systems with the sample time ``ts`` as
+their default step.
+
+- The controller samples its inputs r and y at the communication point that starts a step
+  when a sample is due (t = t_0 + k ts) and outputs the command u computed there, held until
+  the next sample; a step may be shorter than ts, but may not pass a sample instant. This is
+  the simulator's order: u_k is computed from y_k at t_k and held over [t_k, t_k + ts).
+- The servo takes the command u set before a step as the command issued at its start and
+  advances by whole samples (a step is an integer multiple of ts), exactly as the simulator's
+  loop: the same RK4 substeps (or exact zero-order hold for the linear plants), the same
+  transport delay, the same transducer rounding of the output y.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import uuid
+import zipfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from xml.sax.saxutils import escape, quoteattr
+
+from .. import __version__
+from ..errors import FuzzyServoError, ParameterError
+from .controller_c import CController, c_literal
+
+__all__ = [
+    "FMU_PLATFORM",
+    "CompilerError",
+    "FmuVariable",
+    "c_compiler",
+    "compile_shared",
+    "controller_fmu",
+    "servo_fmu",
+]
+
+#: The FMI 2.0 platform folder of the binaries built here.
+FMU_PLATFORM = "linux64"
+
+#: Flags of every build: the C must compile without a warning under them.
+STRICT_FLAGS: tuple[str, ...] = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
+
+
+class CompilerError(FuzzyServoError, RuntimeError):
+    """The C compiler is missing or refused the generated code."""
+
+
+def c_compiler() -> str:
+    """The C compiler to use: ``$CC`` if set, else ``cc`` or ``gcc`` on the PATH.
+
+    Raises
+    ------
+    CompilerError
+        None found.
+    """
+    cc = os.environ.get("CC")
+    if cc:
+        return cc
+    for name in ("cc", "gcc"):
+        path = shutil.which(name)
+        if path:
+            return path
+    raise CompilerError("building an FMU needs a C compiler: neither cc nor gcc is on the "
+                        "PATH (install gcc, or set CC)")
+
+
+def compile_shared(sources: Sequence[Path], out: Path, *, include: Sequence[Path] = (),
+                   flags: Sequence[str] = ()) -> None:
+    """Compile ``sources`` into the shared library ``out`` with :data:`STRICT_FLAGS`, ``-O2``
+    and hidden symbols (only the FMI functions are exported).
+
+    Raises
+    ------
+    CompilerError
+        The compiler is missing or failed (its first error line in the message).
+    """
+    cmd = [c_compiler(), *STRICT_FLAGS, "-O2", "-fPIC", "-shared", "-fvisibility=hidden",
+           *flags, *(f"-I{p}" for p in include), "-o", str(out), *map(str, sources), "-lm"]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    except OSError as exc:
+        raise CompilerError(f"cannot run the C compiler {cmd[0]!r}: {exc.strerror}") from None
+    if proc.returncode != 0:
+        first = next((ln for ln in proc.stderr.splitlines() if "error" in ln),
+                     proc.stderr.strip().splitlines()[0] if proc.stderr.strip() else "")
+        raise CompilerError(f"the C compiler failed on the generated code ({first.strip()}); "
+                            f"please report it with the command that made it")
+
+
+@dataclass(frozen=True, slots=True)
+class FmuVariable:
+    """One Real variable of a model description.
+
+    Attributes
+    ----------
+    name, description, unit : str
+        As written in the model description (unit "" for none).
+    causality : {"input", "output", "parameter", "local"}
+        FMI causality.
+    variability : {"continuous", "discrete", "tunable", "fixed", "constant"}
+        FMI variability.
+    start : float or None
+        Start value (required for inputs, parameters and constants).
+    """
+
+    name: str
+    description: str
+    unit: str
+    causality: str
+    variability: str
+    start: float | None = None
+
+
+# base-unit exponents of the units the FMUs use (FMI 2.0 <BaseUnit>)
+_BASE_UNITS: dict[str, dict[str, int]] = {
+    "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "m/s2": {"m": 1, "s": -2},
+    "Pa": {"kg": 1, "m": -1, "s": -2}, "s": {"s": 1}, "1/s": {"s": -1}, "1/m": {"m": -1},
+    "1/(m s)": {"m": -1, "s": -1}, "s/m": {"s": 1, "m": -1}, "1": {}, "-": {},
+}
+
+
+def _unit_definitions(units: Sequence[str]) -> str:
+    out = []
+    for u in dict.fromkeys(u for u in units if u):
+        base = _BASE_UNITS.get(u)
+        if base is None:
+            out.append(f"    <Unit name={quoteattr(u)}/>")
+        else:
+            attrs = " ".join(f'{k}="{v}"' for k, v in base.items())
+            out.append(f"    <Unit name={quoteattr(u)}><BaseUnit {attrs}/></Unit>")
+    if not out:
+        return ""
+    return "  <UnitDefinitions>\n" + "\n".join(out) + "\n  </UnitDefinitions>\n"
+
+
+def model_description(*, model_name: str, identifier: str, guid: str, description: str,
+                      variables: Sequence[FmuVariable], ts: float,
+                      sources: Sequence[str]) -> str:
+    """The FMI 2.0 ``modelDescription.xml`` of a co-simulation FMU whose Real variables have
+    value references 0, 1, ... in the order of ``variables``."""
+    units = [v.unit for v in variables]
+    rows = []
+    for vr, v in enumerate(variables):
+        attrs = [f"name={quoteattr(v.name)}", f'valueReference="{vr}"',
+                 f"description={quoteattr(v.description)}", f'causality="{v.causality}"',
+                 f'variability="{v.variability}"']
+        if v.causality in ("parameter", "local") and v.start is not None:
+            attrs.append('initial="exact"')
+        real = "<Real"
+        if v.unit:
+            real += f" unit={quoteattr(v.unit)}"
+        if v.start is not None:
+            real += f' start="{v.start!r}"'
+        real += "/>"
+        rows.append(f"    <ScalarVariable {' '.join(attrs)}>\n      {real}\n"
+                    f"    </ScalarVariable>")
+    outputs = [i + 1 for i, v in enumerate(variables) if v.causality == "output"]
+    out_xml = "\n".join(f'      <Unknown index="{i}" dependencies=""/>' for i in outputs)
+    init_xml = "\n".join(f'      <Unknown index="{i}" dependencies=""/>' for i in outputs)
+    files = "\n".join(f"      <File name={quoteattr(s)}/>" for s in sources)
+    return f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription
+  fmiVersion="2.0"
+  modelName={quoteattr(model_name)}
+  guid="{guid}"
+  description={quoteattr(description)}
+  generationTool="fuzzyservo {escape(__version__)}"
+  variableNamingConvention="flat"
+  numberOfEventIndicators="0">
+  <CoSimulation
+    modelIdentifier={quoteattr(identifier)}
+    needsExecutionTool="false"
+    canHandleVariableCommunicationStepSize="true"
+    canInterpolateInputs="false"
+    canBeInstantiatedOnlyOncePerProcess="false"
+    canNotUseMemoryManagementFunctions="false"
+    canGetAndSetFMUstate="true"
+    canSerializeFMUstate="true"
+    providesDirectionalDerivative="false">
+    <SourceFiles>
+{files}
+    </SourceFiles>
+  </CoSimulation>
+{_unit_definitions(units)}  <DefaultExperiment startTime="0" stepSize="{ts!r}"/>
+  <ModelVariables>
+{chr(10).join(rows)}
+  </ModelVariables>
+  <ModelStructure>
+    <Outputs>
+{out_xml}
+    </Outputs>
+    <InitialUnknowns>
+{init_xml}
+    </InitialUnknowns>
+  </ModelStructure>
+</fmiModelDescription>
+"""
+
+
+def _guid(*parts: str) -> str:
+    h = hashlib.sha256("\0".join(parts).encode()).hexdigest()
+    return "{" + str(uuid.UUID(h[:32])) + "}"
+
+
+def _fmi2_headers() -> dict[str, str]:
+    root = resources.files("fuzzyservo.export") / "csrc" / "fmi2"
+    return {name: (root / name).read_text(encoding="utf-8")
+            for name in ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h")}
+
+
+def _csrc(name: str) -> str:
+    return (resources.files("fuzzyservo.export") / "csrc" / name).read_text(encoding="utf-8")
+
+
+def _with_wrapper(model: str) -> str:
+    """``model`` inside the FMI 2.0 wrapper (csrc/fmi2_cs.c): its head, the model, its body."""
+    head, sep, body = _csrc("fmi2_cs.c").partition("/* @MODEL@ */")
+    if not sep:
+        raise AssertionError("csrc/fmi2_cs.c lost its @MODEL@ marker")
+    return head + "\n" + model + "\n" + body
+
+
+def _package(identifier: str, md: str, sources: Mapping[str, str], compiled: Sequence[str]
+             ) -> bytes:
+    """Compile ``compiled`` (names in ``sources``) and zip the FMU; returns its bytes."""
+    with tempfile.TemporaryDirectory(prefix="fuzzyservo-fmu-") as tmp:
+        root = Path(tmp)
+        src = root / "sources"
+        src.mkdir()
+        for name, text in {**sources, **_fmi2_headers()}.items():
+            (src / name).write_text(text, encoding="utf-8")
+        lib = root / f"{identifier}.so"
+        compile_shared([src / c for c in compiled], lib, include=[src])
+        out = root / "fmu.zip"
+        with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
+            zf.writestr("modelDescription.xml", md)
+            zf.write(lib, f"binaries/{FMU_PLATFORM}/{identifier}.so")
+            for name in sources:
+                zf.write(src / name, f"sources/{name}")
+        return out.read_bytes()
+
+
+# --- the controller FMU ------------------------------------------------------------------
+
+_CTL_MODEL = """\
+/* FMI 2.0 model of the controller @NAME@ (generated by fuzzyservo @VERSION@). */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "fmi2Functions.h"
+#include "@NAME@.h"
+
+#define FSM_GUID "@GUID@"
+#define FSM_N_VARS (@FIRST_GAIN@ + @UPPER@_N_GAINS)
+#define FSM_TS @TS@
+
+enum { VR_R, VR_Y, VR_U, VR_ALPHA, VR_U_START, VR_TS };
+
+struct fsm_model {
+    @NAME@_t c;
+    double r, y, u, alpha, u_start, t0;
+    double g[@UPPER@_N_GAINS];
+    long k; /* index of the next sample: t_k = t0 + k ts */
+};
+
+static void fsm_defaults(struct fsm_model *m)
+{
+    int i;
+    memset(m, 0, sizeof *m);
+    m->alpha = 1.0;
+    for (i = 0; i < @UPPER@_N_GAINS; i++) {
+        m->g[i] = @NAME@_gain_default(i);
+    }
+    @NAME@_init(&m->c, 0, 0);
+}
+
+static void fsm_gain_message(int bad, double v, char *msg)
+{
+    sprintf(msg, "gain %.20s = %g is out of range (finite and >= 0; n: > 0 or inf)",
+            @NAME@_gain_name(bad - 1), v);
+}
+
+static int fsm_set(struct fsm_model *m, unsigned vr, double v, int phase, char *msg)
+{
+    double g[@UPPER@_N_GAINS];
+    int bad;
+    switch (vr) {
+    case VR_R:
+        m->r = v;
+        return 0;
+    case VR_Y:
+        m->y = v;
+        return 0;
+    case VR_U_START:
+        if (phase == FSM_STEP) {
+            sprintf(msg, "u_start is fixed once initialised");
+            return 1;
+        }
+        if (!(v >= -1.0 && v <= 1.0)) {
+            sprintf(msg, "u_start = %g is not a command in [-1, 1]", v);
+            return 1;
+        }
+        m->u_start = v;
+        m->u = v;
+        return 0;
+    default:
+        break;
+    }
+    if (vr < @FIRST_GAIN@) {
+        sprintf(msg, "variable %u is not settable (an output or a constant)", vr);
+        return 1;
+    }
+    memcpy(g, m->g, sizeof g);
+    g[vr - @FIRST_GAIN@] = v;
+    if (phase == FSM_STEP) {
+        bad = @NAME@_set_gains(&m->c, g);
+        if (bad != 0) {
+            fsm_gain_message(bad, g[bad - 1], msg);
+            return 1;
+        }
+    }
+    memcpy(m->g, g, sizeof g);
+    return 0;
+}
+
+static int fsm_get(const struct fsm_model *m, unsigned vr, double *v)
+{
+    switch (vr) {
+    case VR_R:
+        *v = m->r;
+        return 0;
+    case VR_Y:
+        *v = m->y;
+        return 0;
+    case VR_U:
+        *v = m->u;
+        return 0;
+    case VR_ALPHA:
+        *v = m->alpha;
+        return 0;
+    case VR_U_START:
+        *v = m->u_start;
+        return 0;
+    case VR_TS:
+        *v = FSM_TS;
+        return 0;
+    default:
+        break;
+    }
+    if (vr < @FIRST_GAIN@) {
+        return 1;
+    }
+    *v = m->g[vr - @FIRST_GAIN@];
+    return 0;
+}
+
+static int fsm_initialize(struct fsm_model *m, double t0, char *msg)
+{
+    int bad;
+    bad = @NAME@_set_gains(&m->c, m->g);
+    if (bad != 0) {
+        fsm_gain_message(bad, m->g[bad - 1], msg);
+        return 1;
+    }
+    @NAME@_init(&m->c, (@NAME@_real)m->y, (@NAME@_real)m->u_start);
+    m->u = m->u_start;
+    m->alpha = 1.0;
+    m->t0 = t0;
+    m->k = 0;
+    return 0;
+}
+
+static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
+{
+    double tol = 1e-6 * FSM_TS;
+    double tk = m->t0 + (double)m->k * FSM_TS;
+    int sample = 0;
+    if (t > tk + tol) {
+        sprintf(msg, "the step from t = %.17g s skips the sample at %.17g s: communication "
+                "points must include every sample instant t0 + k ts, ts = %g s", t, tk,
+                FSM_TS);
+        return 1;
+    }
+    if (t >= tk - tol) {
+        sample = 1;
+        tk = m->t0 + (double)(m->k + 1) * FSM_TS;
+    }
+    if (t + h > tk + tol) {
+        sprintf(msg, "the step from t = %.17g s to %.17g s passes the sample at %.17g s: a "
+                "step may not be longer than the time to the next sample (ts = %g s)", t,
+                t + h, tk, FSM_TS);
+        return 1;
+    }
+    if (sample) {
+        m->u = (double)@NAME@_step(&m->c, (@NAME@_real)m->r, (@NAME@_real)m->y);
+@ALPHA@        m->k += 1;
+    }
+    return 0;
+}
+"""
+
+
+def controller_fmu(cc: CController, *, kind_title: str, command: str = "") -> bytes:
+    """The FMU (zip bytes) of the generated controller ``cc``: inputs ``r``, ``y``; output
+    ``u`` (and ``alpha`` for the self-tuning controller); the gains as tunable parameters;
+    ``u_start`` (the holding command the controller starts from, bumpless) fixed.
+
+    Raises
+    ------
+    CompilerError
+        No C compiler, or it failed.
+    """
+    identifier = cc.name
+    first_gain = 6
+    variables = [
+        FmuVariable("r", "reference position", "m", "input", "continuous", 0.0),
+        FmuVariable("y", "measured position", "m", "input", "continuous", 0.0),
+        FmuVariable("u", "command, a fraction of the rated valve input, held between "
+                    "samples", "1", "output", "discrete"),
+        FmuVariable("alpha", "gain-updating factor of the last sample (1 without "
+                    "self-tuning)", "1", "output" if cc.self_tuning else "local",
+                    "discrete"),
+        FmuVariable("u_start", "holding command at start (bumpless start from rest)", "1",
+                    "parameter", "fixed", 0.0),
+        FmuVariable("ts", "sample time", "s", "local", "constant", cc.ts),
+    ]
+    for g, v, u in zip(cc.gain_names, cc.gains, cc.gain_units, strict=True):
+        unit = u if u in _BASE_UNITS else ""
+        variables.append(FmuVariable(g, f"gain {g} [{u}]", unit, "parameter", "tunable", v))
+    wrapper = f"{identifier}_fmi2.c"
+    guid = _guid(cc.header, cc.source, wrapper)
+    alpha = (f"        m->alpha = (double){cc.name}_alpha(&m->c);\n" if cc.self_tuning
+             else "")
+    model = (_CTL_MODEL.replace("@NAME@", cc.name).replace("@UPPER@", cc.name.upper())
+             .replace("@GUID@", guid).replace("@TS@", c_literal(cc.ts))
+             .replace("@FIRST_GAIN@", str(first_gain)).replace("@VERSION@", __version__)
+             .replace("@ALPHA@", alpha))
+    sources = {**cc.files(), wrapper: _with_wrapper(model)}
+    md = model_description(
+        model_name=f"fuzzyservo {cc.name}",
+        identifier=identifier, guid=guid,
+        description=f"{kind_title} controller exported by fuzzyservo {__version__}"
+                    + (f" ({command})" if command else ""),
+        variables=variables, ts=cc.ts, sources=[f"{cc.name}.c", wrapper])
+    return _package(identifier, md, sources, [f"{cc.name}.c", wrapper])
+
+
+# --- the servo FMU -----------------------------------------------------------------------
+
+_SERVO_MODEL = """\
+/* FMI 2.0 model of the servo (generated by fuzzyservo @VERSION@). */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "fmi2Functions.h"
+
+@PLANT@
+
+#define FSM_GUID "@GUID@"
+#define FSM_N_OUT @N_OUT@
+#define FSM_N_VARS (FSM_N_OUT + 4)
+#define FSM_TS @TS@
+#define FSM_U_TRIM @U_TRIM@
+#define FSM_DELAY @DELAY@
+
+struct fsm_model {
+    fs_servo s;
+    double u, t0;
+    long k; /* samples advanced: the state is at t0 + k ts */
+};
+
+static void fsm_defaults(struct fsm_model *m)
+{
+    memset(m, 0, sizeof *m);
+    fs_servo_init(&m->s);
+    m->u = FSM_U_TRIM;
+}
+
+static int fsm_set(struct fsm_model *m, unsigned vr, double v, int phase, char *msg)
+{
+    (void)phase;
+    if (vr != 0) {
+        sprintf(msg, "variable %u is not settable (only the input u is)", vr);
+        return 1;
+    }
+    m->u = v;
+    return 0;
+}
+
+static int fsm_get(const struct fsm_model *m, unsigned vr, double *v)
+{
+    if (vr == 0) {
+        *v = m->u;
+    } else if (vr <= FSM_N_OUT) {
+        *v = fs_servo_output(&m->s, (int)vr - 1);
+    } else if (vr == FSM_N_OUT + 1) {
+        *v = FSM_TS;
+    } else if (vr == FSM_N_OUT + 2) {
+        *v = FSM_U_TRIM;
+    } else {
+        *v = FSM_DELAY;
+    }
+    return 0;
+}
+
+static int fsm_initialize(struct fsm_model *m, double t0, char *msg)
+{
+    (void)msg;
+    fs_servo_init(&m->s);
+    m->t0 = t0;
+    m->k = 0;
+    return 0;
+}
+
+static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
+{
+    double tol = 1e-6 * FSM_TS;
+    double n = floor(h / FSM_TS + 0.5);
+    double tk = m->t0 + (double)m->k * FSM_TS;
+    long j;
+    if (fabs(t - tk) > tol) {
+        sprintf(msg, "a step must start where the last ended, at t0 + k ts = %.17g s, not "
+                "at %.17g s", tk, t);
+        return 1;
+    }
+    if (fabs(h - n * FSM_TS) > tol) {
+        sprintf(msg, "the communication step %.17g s is not a whole number of samples of "
+                "ts = %g s", h, FSM_TS);
+        return 1;
+    }
+    for (j = 0; j < (long)n; j++) {
+        if (fs_servo_sample(&m->s, m->u) != 0) {
+            sprintf(msg, "the servo state became non-finite between t = %.17g s and "
+                    "%.17g s (command %g)", tk + (double)j * FSM_TS,
+                    tk + (double)(j + 1) * FSM_TS, m->u);
+            return 1;
+        }
+        m->k += 1;
+    }
+    return 0;
+}
+"""
+
+
+def servo_fmu(servo: object, *, identifier: str, plant_name: str, description: str,
+              units: Sequence[str], outputs: Sequence[str], descriptions: Sequence[str],
+              ts: float, u_trim: float, delay: float, plant_code: str) -> bytes:
+    """The FMU (zip bytes) of a servo whose C code (fragment and constants) is
+    ``plant_code``: input ``u``; outputs ``outputs`` (``y``, the measured position, then the
+    plant states); constants ``ts``, ``u_trim`` (the holding command) and ``delay``.
+
+    Raises
+    ------
+    CompilerError
+        No C compiler, or it failed.
+    """
+    del servo
+    if len(outputs) != len(units) or len(outputs) != len(descriptions):
+        raise ParameterError("servo FMU: outputs, units and descriptions differ in length")
+    variables = [FmuVariable("u", "valve command, a fraction of the rated input (held over "
+                             "each step)", "1", "input", "continuous", u_trim)]
+    for name, unit, desc in zip(outputs, units, descriptions, strict=True):
+        variables.append(FmuVariable(name, desc, unit if unit in _BASE_UNITS else "",
+                                     "output", "continuous"))
+    variables += [
+        FmuVariable("ts", "sample time: communication steps are whole multiples", "s",
+                    "local", "constant", ts),
+        FmuVariable("u_trim", "command that holds the servo at rest at its start", "1",
+                    "local", "constant", u_trim),
+        FmuVariable("delay", "transport (hose) delay on the command", "s", "local",
+                    "constant", delay),
+    ]
+    source = f"{identifier}.c"
+    guid = _guid(plant_code, description, identifier)
+    model = (_SERVO_MODEL.replace("@VERSION@", __version__).replace("@PLANT@", plant_code)
+             .replace("@GUID@", guid).replace("@N_OUT@", str(len(outputs)))
+             .replace("@TS@", c_literal(ts)).replace("@U_TRIM@", c_literal(u_trim))
+             .replace("@DELAY@", c_literal(delay)))
+    md = model_description(model_name=f"fuzzyservo {plant_name} servo", identifier=identifier,
+                           guid=guid, description=description, variables=variables, ts=ts,
+                           sources=[source])
+    return _package(identifier, md, {source: _with_wrapper(model)}, [source])

@@ -1,0 +1,82 @@
+"""Load generated controller C through ctypes, and the Python runs it is compared with.
+
+The generated code is compiled with the flags the acceptance names (``-std=c99 -Wall -Wextra
+-Werror -pedantic -O2``) into a shared library; ``NAME_init`` / ``NAME_step`` /
+``NAME_set_gains`` are called on an instance buffer owned by Python.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fuzzyservo.export.controller_c import CController
+
+STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
+
+
+def gcc() -> str:
+    """The compiler of the tests: gcc, which must exist (the tests fail without it)."""
+    import shutil
+
+    path = shutil.which("gcc")
+    assert path is not None, "gcc is needed by the export tests (make test installs it)"
+    return path
+
+
+def write(cc: CController, folder: Path) -> Path:
+    """Write the two files of ``cc`` into ``folder``; returns the source's path."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, text in cc.files().items():
+        (folder / name).write_text(text, encoding="utf-8")
+    return folder / f"{cc.name}.c"
+
+
+def build(cc: CController, folder: Path, *, extra: tuple[str, ...] = ()) -> Path:
+    """Compile ``cc`` into a shared library in ``folder`` (strict flags, -O2)."""
+    src = write(cc, folder)
+    lib = folder / f"lib{cc.name}.so"
+    proc = subprocess.run([gcc(), *STRICT, "-O2", "-fPIC", "-shared", *extra, "-o", str(lib),
+                           str(src), "-lm"], capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr
+    return lib
+
+
+class CStep:
+    """One instance of a generated controller, driven from Python."""
+
+    def __init__(self, lib: Path, cc: CController) -> None:
+        self.cc = cc
+        self.dll = ctypes.CDLL(str(lib))
+        real = ctypes.c_double if cc.real == "double" else ctypes.c_float
+        self.real = real
+        n = cc.name
+        self._init = getattr(self.dll, f"{n}_init")
+        self._init.argtypes = [ctypes.c_void_p, real, real]
+        self._init.restype = None
+        self._step = getattr(self.dll, f"{n}_step")
+        self._step.argtypes = [ctypes.c_void_p, real, real]
+        self._step.restype = real
+        self._set = getattr(self.dll, f"{n}_set_gains")
+        self._set.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_double)]
+        self._set.restype = ctypes.c_int
+        self.buf = ctypes.create_string_buffer(4096)
+
+    def init(self, y0: float, u0: float) -> None:
+        self._init(self.buf, y0, u0)
+
+    def step(self, r: float, y: float) -> float:
+        return float(self._step(self.buf, r, y))
+
+    def set_gains(self, gains: list[float]) -> int:
+        arr = (ctypes.c_double * len(gains))(*gains)
+        return int(self._set(self.buf, arr))
+
+    def replay(self, r: Any, y: Any, y0: float, u0: float) -> np.ndarray:
+        """Commands for the measured samples (r_k, y_k) of a run, from the bumpless start."""
+        self.init(y0, u0)
+        return np.array([self.step(float(a), float(b)) for a, b in zip(r, y, strict=True)])
