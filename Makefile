@@ -24,13 +24,17 @@ $(FLVENV)/.installed-stamp:
 	$(FLVENV)/bin/python -m pip install $(PIP_QUIET) 'pyfuzzylite>=8' 'numpy<2'
 	touch $@
 
-# Independent readers the tests compare with: fuzzylite's CLI (Debian package, about 1 MB).
-# Installed when missing (root, or sudo); the tests that need it fail, never skip, without it.
+# Independent readers the tests compare with: fuzzylite's CLI (Debian package, about 1 MB);
+# and the C compiler the export tests build the generated code and FMUs with (gcc, with its
+# address and undefined-behaviour sanitizers, and the C library's headers). Installed when
+# missing (root, or sudo); the tests that need them fail, never skip, without them.
 APT_INSTALL = DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -q --no-install-recommends
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+ORACLE_PKGS := fuzzylite gcc libc6-dev
 oracles:
-	@command -v fuzzylite >/dev/null 2>&1 || $(APT_INSTALL) fuzzylite \
-	  || { $(SUDO) apt-get update -q && $(APT_INSTALL) fuzzylite; }
+	@{ command -v fuzzylite && command -v gcc && [ -f /usr/include/stdio.h ]; } >/dev/null 2>&1 \
+	  || $(APT_INSTALL) $(ORACLE_PKGS) \
+	  || { $(SUDO) apt-get update -q && $(APT_INSTALL) $(ORACLE_PKGS); }
 
 # Optional: Octave's fuzzy-logic-toolkit reads and evaluates our exported .fis files (about
 # 270 MB installed, so not part of `make test`).

@@ -245,11 +245,15 @@ def _package(identifier: str, md: str, sources: Mapping[str, str], compiled: Seq
         lib = root / f"{identifier}.so"
         compile_shared([src / c for c in compiled], lib, include=[src])
         out = root / "fmu.zip"
+        entries = [("modelDescription.xml", md.encode("utf-8"), 0o644),
+                   (f"binaries/{FMU_PLATFORM}/{identifier}.so", lib.read_bytes(), 0o755)]
+        entries += [(f"sources/{name}", (src / name).read_bytes(), 0o644) for name in sources]
         with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
-            zf.writestr("modelDescription.xml", md)
-            zf.write(lib, f"binaries/{FMU_PLATFORM}/{identifier}.so")
-            for name in sources:
-                zf.write(src / name, f"sources/{name}")
+            for arcname, data, mode in entries:  # fixed dates: the same export, the same zip
+                info = zipfile.ZipInfo(arcname, date_time=(1980, 1, 1, 0, 0, 0))
+                info.external_attr = mode << 16
+                info.compress_type = zipfile.ZIP_DEFLATED
+                zf.writestr(info, data)
         return out.read_bytes()
 
 
