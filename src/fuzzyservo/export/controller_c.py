@@ -299,6 +299,10 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
         A controller class without C code, a bad name, or tables C cannot hold.
     """
     check_c_name(name)
+    if not isinstance(controller, PIDController | FuzzyPIController):
+        raise ParameterError(
+            f"controller {kind.name} ({type(controller).__name__}) has no C code; the "
+            f"exporter expresses the PID family and the fuzzy PIs")
     if real not in ("double", "float"):
         raise ParameterError(f"real must be 'double' or 'float', got {real!r}")
     gain_names = kind.gain_names
@@ -341,7 +345,7 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
                 checks.append(f"    if (!(g[{i}] >= 0.0 && g[{i}] <= DBL_MAX)) {{\n"
                               f"        return {i + 1};\n    }}")
         self_tuning = False
-    elif isinstance(controller, FuzzyPIController):
+    else:
         law = "self-tuning fuzzy PI" if controller.self_tuning else "fuzzy PI"
         self_tuning = bool(controller.self_tuning)
         tables = [controller.du_rules, controller.du_lims]
@@ -357,10 +361,6 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
                      "    c->s[4] = 1;\n    (void)y0;")
         checks = [f"    if (!(g[{i}] >= 0.0 && g[{i}] <= DBL_MAX)) {{\n        return {i + 1};\n"
                   f"    }}" for i in range(len(gain_names))]
-    else:
-        raise ParameterError(
-            f"controller {kind.name} ({type(controller).__name__}) has no C code; the "
-            f"exporter expresses the PID family and the fuzzy PIs")
     digest = _tables_digest(tables) if tables else ""
 
     options = _options(controller)
