@@ -61,6 +61,9 @@ class CStep:
         self._step = getattr(self.dll, f"{n}_step")
         self._step.argtypes = [ctypes.c_void_p, real, real]
         self._step.restype = real
+        self._reset = getattr(self.dll, f"{n}_reset")
+        self._reset.argtypes = [ctypes.c_void_p, real, real]
+        self._reset.restype = None
         self._set = getattr(self.dll, f"{n}_set_gains")
         self._set.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_double)]
         self._set.restype = ctypes.c_int
@@ -69,6 +72,9 @@ class CStep:
     def init(self, y0: float, u0: float) -> None:
         self._init(self.buf, y0, u0)
 
+    def reset(self, y0: float, u0: float) -> None:
+        self._reset(self.buf, y0, u0)
+
     def step(self, r: float, y: float) -> float:
         return float(self._step(self.buf, r, y))
 
@@ -76,7 +82,12 @@ class CStep:
         arr = (ctypes.c_double * len(gains))(*gains)
         return int(self._set(self.buf, arr))
 
-    def replay(self, r: Any, y: Any, y0: float, u0: float) -> np.ndarray:
-        """Commands for the measured samples (r_k, y_k) of a run, from the bumpless start."""
+    def replay(self, r: Any, y: Any, y0: float, u0: float, gains: list[float] | None = None
+               ) -> np.ndarray:
+        """Commands for the measured samples (r_k, y_k) of a run, from the bumpless start
+        with the exported gains, or with ``gains`` (set through NAME_set_gains)."""
         self.init(y0, u0)
+        if gains is not None:
+            assert self.set_gains(gains) == 0
+            self.reset(y0, u0)
         return np.array([self.step(float(a), float(b)) for a, b in zip(r, y, strict=True)])

@@ -460,6 +460,9 @@ typedef struct {{
  * r = y = y0 returns u0. */
 void {name}_init({name}_t *c, {name}_real y0, {name}_real u0);
 
+/* The same start with the gains the instance has now (after {name}_set_gains). */
+void {name}_reset({name}_t *c, {name}_real y0, {name}_real u0);
+
 /* One sample: reference r [m], measurement y [m] -> command u [-], limited; hold it until
  * the next sample. */
 {name}_real {name}_step({name}_t *c, {name}_real r, {name}_real y);
@@ -523,6 +526,11 @@ typedef {name}_real fs_real;
 void {name}_init({name}_t *c, {name}_real y0, {name}_real u0)
 {{
     memcpy(c->p, fs_p0, sizeof c->p);
+    {name}_reset(c, y0, u0);
+}}
+
+void {name}_reset({name}_t *c, {name}_real y0, {name}_real u0)
+{{
 {init_body}
 }}
 

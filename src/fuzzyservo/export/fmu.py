@@ -380,7 +380,7 @@ static int fsm_initialize(struct fsm_model *m, double t0, char *msg)
         fsm_gain_message(bad, m->g[bad - 1], msg);
         return 1;
     }
-    @NAME@_init(&m->c, (@NAME@_real)m->y, (@NAME@_real)m->u_start);
+    @NAME@_reset(&m->c, (@NAME@_real)m->y, (@NAME@_real)m->u_start);
     m->u = m->u_start;
     m->alpha = 1.0;
     m->t0 = t0;
@@ -483,9 +483,8 @@ _SERVO_MODEL = """\
 #define FSM_DELAY @DELAY@
 
 struct fsm_model {
-    fs_servo s;
+    fs_servo s; /* at t0 + fs_servo_time(&s) */
     double u, t0;
-    long k; /* samples advanced: the state is at t0 + k ts */
 };
 
 static void fsm_defaults(struct fsm_model *m)
@@ -527,7 +526,6 @@ static int fsm_initialize(struct fsm_model *m, double t0, char *msg)
     (void)msg;
     fs_servo_init(&m->s);
     m->t0 = t0;
-    m->k = 0;
     return 0;
 }
 
@@ -535,7 +533,7 @@ static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
 {
     double tol = 1e-6 * FSM_TS;
     double n = floor(h / FSM_TS + 0.5);
-    double tk = m->t0 + (double)m->k * FSM_TS;
+    double tk = m->t0 + fs_servo_time(&m->s);
     long j;
     if (fabs(t - tk) > tol) {
         sprintf(msg, "a step must start where the last ended, at t0 + k ts = %.17g s, not "
@@ -554,7 +552,6 @@ static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
                     tk + (double)(j + 1) * FSM_TS, m->u);
             return 1;
         }
-        m->k += 1;
     }
     return 0;
 }

@@ -1,0 +1,284 @@
+"""The FMUs: FMPy validates them; the servo FMU in open loop equals ``fuzzyservo simulate
+--open-loop``, and the controller FMU and the servo FMU connected by the small master loop
+below equal ``fuzzyservo simulate`` of the same loop, within 1e-9 of the stroke (the
+acceptance; both are ports of the same code on the same bits, so the observed difference is
+0 or rounding)."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from fmpy import extract, read_model_description, simulate_fmu
+from fmpy.fmi2 import FMU2Slave
+from fmpy.validation import validate_fmu
+
+from fuzzyservo.cli import main
+from fuzzyservo.files import read_gains_file
+from fuzzyservo.paper.published import named_set
+from fuzzyservo.registry import build_controller, build_plant, controller_names
+from fuzzyservo.sim import simulate, simulate_open_loop
+
+ROOT = Path(__file__).resolve().parents[2]
+GAINS = ROOT / "src" / "fuzzyservo" / "data" / "gains"
+SYSTEMS = ROOT / "src" / "fuzzyservo" / "data" / "systems"
+PARAMS = named_set("paper")
+STROKE = PARAMS.cylinder.stroke
+#: The acceptance's bound on positions [m].
+TOL = 1e-9 * STROKE
+
+
+class Slave:
+    """An FMU instance driven by hand, through FMPy's FMI 2.0 bindings."""
+
+    def __init__(self, path: Path, name: str) -> None:
+        self.md = read_model_description(str(path))
+        self.dir = extract(str(path))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.dir,
+                             modelIdentifier=self.md.coSimulation.modelIdentifier,
+                             instanceName=name)
+        self.fmu.instantiate()
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+
+    def set(self, **values: float) -> None:
+        self.fmu.setReal([self.vr[k] for k in values], list(values.values()))
+
+    def get(self, *names: str) -> list[float]:
+        return list(self.fmu.getReal([self.vr[n] for n in names]))
+
+    def close(self) -> None:
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+        shutil.rmtree(self.dir, ignore_errors=True)
+
+
+@contextmanager
+def slaves(*specs: tuple[Path, str]) -> Iterator[list[Slave]]:
+    made = [Slave(p, n) for p, n in specs]
+    try:
+        yield made
+    finally:
+        for s in made:
+            s.close()
+
+
+def _export(argv: list[str]) -> None:
+    assert main(["export", "fmu", *argv]) == 0
+
+
+@pytest.fixture(scope="module")
+def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    d = tmp_path_factory.mktemp("fmus")
+    out: dict[str, Path] = {}
+    for kind in controller_names():
+        gains = GAINS / f"nonlinear-{kind}.toml"
+        if gains.exists():
+            argv = ["--gains", str(gains)]
+        else:
+            argv = ["--controller", kind, "--gains", "kp=20" if kind == "p" else "kp=20,ki=20"]
+        out[kind] = d / f"{kind}.fmu"
+        _export([*argv, "--out", str(out[kind])])
+    out["stfpi-files"] = d / "stfpi-files.fmu"
+    _export(["--gains", str(GAINS / "nonlinear-stfpi.toml"), "--du-system",
+             str(SYSTEMS / "paper-du.fcl"), "--alpha-system", str(SYSTEMS / "paper-alpha.fis"),
+             "--name", "stfpi_files", "--out", str(out["stfpi-files"])])
+    out["stfpi-float"] = d / "stfpi-float.fmu"
+    _export(["--gains", str(GAINS / "nonlinear-stfpi.toml"), "--float", "--name",
+             "stfpi_float", "--out", str(out["stfpi-float"])])
+    for plant in ("linear", "small-signal", "nonlinear"):
+        for delay in ("0", "hose"):
+            key = f"servo-{plant}-{delay}"
+            out[key] = d / f"{key}.fmu"
+            _export(["--plant", plant, "--delay", delay, "--out", str(out[key])])
+    out["servo-nonlinear-frac"] = d / "servo-nonlinear-frac.fmu"
+    _export(["--plant", "nonlinear", "--delay", "0.0025", "--param",
+             "load.mass=150", "--start", "0.3", "--out", str(out["servo-nonlinear-frac"])])
+    return out
+
+
+def test_fmpy_validates_every_fmu(fmus: dict[str, Path]) -> None:
+    problems = {k: validate_fmu(str(p)) for k, p in fmus.items()}
+    assert all(v == [] for v in problems.values()), problems
+    md = read_model_description(str(fmus["stfpi"]))
+    causal = {v.name: (v.causality, v.variability) for v in md.modelVariables}
+    assert causal["r"] == causal["y"] == ("input", "continuous")
+    assert causal["u"] == ("output", "discrete") and causal["alpha"][0] == "output"
+    assert {k: causal[k] for k in ("ke", "kde", "kdu")} == dict.fromkeys(
+        ("ke", "kde", "kdu"), ("parameter", "tunable"))
+    assert md.defaultExperiment.stepSize == "0.001"
+    md = read_model_description(str(fmus["servo-nonlinear-0"]))
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    assert outputs == ["y", "spool_lag", "spool", "spool_rate", "p_f", "p_n", "x", "v"]
+
+
+def _csv(path: Path) -> dict[str, np.ndarray]:
+    with path.open() as fh:
+        rows = list(csv.reader(fh))
+    return {h: np.array([float(r[i]) for r in rows[1:]]) for i, h in enumerate(rows[0])}
+
+
+@pytest.mark.parametrize("plant", ["linear", "small-signal", "nonlinear"])
+@pytest.mark.parametrize("delay", ["0", "hose"])
+def test_servo_fmu_open_loop_equals_simulate_open_loop(
+        plant: str, delay: str, fmus: dict[str, Path], tmp_path: Path) -> None:
+    """FMPy's own master (simulate_fmu) with a constant command against the CLI's CSV."""
+    csv_path = tmp_path / "run.csv"
+    command = "0.3"
+    assert main(["simulate", "--plant", plant, "--open-loop", "--command", command,
+                 "--delay", delay, "--duration", "1", "--out", str(csv_path)]) == 0
+    ref = _csv(csv_path)
+    res = simulate_fmu(str(fmus[f"servo-{plant}-{delay}"]), stop_time=1.0, step_size=1e-3,
+                       output_interval=1e-3, start_values={"u": float(command)})
+    assert np.allclose(res["time"], ref["t"], rtol=0, atol=1e-12)
+    worst = {}
+    for name in res.dtype.names[1:]:
+        scale = STROKE if name in ("y", "x") else max(1.0, float(np.ptp(ref[name])),
+                                                      float(np.max(np.abs(ref[name]))))
+        worst[name] = float(np.max(np.abs(res[name] - ref[name]))) / scale
+    assert max(worst.values()) <= 1e-9, worst
+    assert float(np.ptp(ref["x"])) > 1e-3  # it moved
+
+
+def test_servo_fmu_follows_a_random_command_schedule(fmus: dict[str, Path]) -> None:
+    """Commands that change every sample, at the limits too, with a fractional delay,
+    another load and start: the FMU stepped by hand against simulate_open_loop."""
+    rng = np.random.default_rng(12)
+    n = 800
+    u = np.clip(np.cumsum(rng.normal(0, 0.08, n)), -1.0, 1.0)
+    params = named_set("paper")
+    from fuzzyservo.plant import with_overrides
+
+    params = with_overrides(params, {"load.mass": 150.0})
+    plant = build_plant("nonlinear", params, 0.3 * STROKE)
+    ref = simulate_open_loop(plant, u, duration=n * 1e-3, dt=1e-3, delay=0.0025)
+    with slaves((fmus["servo-nonlinear-frac"], "servo")) as (servo,):
+        servo.fmu.exitInitializationMode()
+        y = [servo.get("y")[0]]
+        t = 0.0
+        for k in range(n):
+            servo.set(u=float(u[k]))
+            servo.fmu.doStep(t, 1e-3)
+            t += 1e-3
+            y.append(servo.get("y")[0])
+    assert len(y) == len(ref.y) == n + 1
+    assert np.max(np.abs(np.array(y) - ref.y)) <= TOL
+    assert np.ptp(ref.y) > 1e-3
+
+
+def _master(ctl_path: Path, servo_path: Path, r: np.ndarray, *,
+            change: tuple[int, str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The small master loop: at t_k the controller reads (r_k, y_k) and steps, its u_k goes
+    to the servo, which steps to t_{k+1}; returns the y_k and u_k."""
+    ys, us = [], []
+    with slaves((ctl_path, "ctl"), (servo_path, "servo")) as (ctl, servo):
+        servo.fmu.exitInitializationMode()
+        y0 = servo.get("y")[0]
+        ctl.set(u_start=servo.get("u_trim")[0], y=y0, r=y0)
+        ctl.fmu.exitInitializationMode()
+        y = y0
+        t = 0.0
+        for k, rk in enumerate(r):
+            if change is not None and k == change[0]:
+                ctl.set(**{change[1]: change[2]})
+            ctl.set(r=float(rk), y=y)
+            ctl.fmu.doStep(t, 1e-3)
+            u = ctl.get("u")[0]
+            ys.append(y)
+            us.append(u)
+            servo.set(u=u)
+            servo.fmu.doStep(t, 1e-3)
+            t += 1e-3
+            y = servo.get("y")[0]
+    return np.array(ys), np.array(us)
+
+
+CASES = [("pid", "nonlinear", "hose"), ("pid2", "nonlinear", "0"), ("fpi", "linear", "hose"),
+         ("stfpi", "nonlinear", "hose"), ("stfpi", "linear", "0"),
+         ("stfpi-files", "nonlinear", "0"), ("p", "small-signal", "0"),
+         ("pi", "nonlinear", "0")]
+
+
+@pytest.mark.parametrize("key, plant, delay", CASES)
+def test_master_loop_of_the_two_fmus_equals_simulate(key: str, plant: str, delay: str,
+                                                     fmus: dict[str, Path]) -> None:
+    kind = key.split("-")[0]
+    systems = None
+    if key == "stfpi-files":
+        from fuzzyservo.formats import read_system
+        from fuzzyservo.fuzzy.loop import loop_system
+
+        systems = {"du": loop_system(read_system(SYSTEMS / "paper-du.fcl")),
+                   "alpha": loop_system(read_system(SYSTEMS / "paper-alpha.fis"))}
+    path = GAINS / f"nonlinear-{kind}.toml"
+    gains = dict(read_gains_file(path).gains) if path.exists() else (
+        {"kp": 20.0} if kind == "p" else {"kp": 20.0, "ki": 20.0})
+    plant_obj = build_plant(plant, PARAMS, 0.5 * STROKE)
+    ctl = build_controller(kind, gains, dt=1e-3, systems=systems)
+    n = 1500
+    offsets = np.where(np.arange(n) < 700, 0.1, -0.15)
+    res = simulate(ctl, plant_obj, offsets, duration=(n - 1) * 1e-3,
+                   delay=PARAMS.delay.transport_delay if delay == "hose" else 0.0)
+    y, u = _master(fmus[key], fmus[f"servo-{plant}-{delay}"], res.r)
+    assert np.max(np.abs(y - res.y)) <= TOL, np.max(np.abs(y - res.y))
+    assert np.max(np.abs(u - res.u)) <= 1e-9, np.max(np.abs(u - res.u))
+    assert np.ptp(res.y) > 0.1  # the loop followed the steps
+
+
+def test_float_controller_fmu_in_the_loop(fmus: dict[str, Path]) -> None:
+    """The float build in the loop stays near the double one: 1e-5 of the stroke (float
+    commands differ by ~1e-6, a stable loop does not amplify them)."""
+    gains = dict(read_gains_file(GAINS / "nonlinear-stfpi.toml").gains)
+    plant = build_plant("nonlinear", PARAMS, 0.5 * STROKE)
+    res = simulate(build_controller("stfpi", gains, dt=1e-3), plant, np.full(1001, 0.1),
+                   duration=1.0)
+    y, _u = _master(fmus["stfpi-float"], fmus["servo-nonlinear-0"], res.r)
+    dev = float(np.max(np.abs(y - res.y)))
+    assert 0.0 < dev <= 1e-5 * STROKE, dev
+
+
+def test_a_tuned_gain_takes_effect_at_the_next_sample(fmus: dict[str, Path]) -> None:
+    """Setting kdu through the FMU mid-run equals the Python controller whose kdu changes
+    at that sample (per-step API: the same state, a controller with the new gain)."""
+    gains = dict(read_gains_file(GAINS / "linear-fpi.toml").gains)
+    n, k_change, new = 1000, 400, gains["kdu"] * 1.5
+    plant = build_plant("linear", PARAMS, 0.5 * STROKE)
+    r = np.full(n, plant.y0 + 0.1)
+    y_f, u_f = _master(fmus_linear_fpi(fmus, gains), fmus["servo-linear-0"], r,
+                       change=(k_change, "kdu", new))
+    a = build_controller("fpi", gains, dt=1e-3)
+    b = build_controller("fpi", {**gains, "kdu": new}, dt=1e-3)
+    state: Any = a.initial_state(u0=plant.u0)
+    u_py = []
+    for k in range(n):
+        u_k, state = (a if k < k_change else b).step(state, r[k], y_f[k])
+        u_py.append(u_k)
+    assert np.max(np.abs(np.array(u_py) - u_f)) <= 1e-12
+
+
+def fmus_linear_fpi(fmus: dict[str, Path], gains: dict[str, float]) -> Path:
+    path = fmus["fpi"].with_name("fpi-linear.fmu")
+    if not path.exists():
+        _export(["--controller", "fpi", "--gains", ",".join(f"{k}={v!r}" for k, v in
+                                                           gains.items()),
+                 "--out", str(path), "--name", "fpi_lin"])
+    return path
+
+
+def test_fmu_refuses_steps_that_skip_a_sample(fmus: dict[str, Path]) -> None:
+    with slaves((fmus["pi"], "ctl"), (fmus["servo-linear-0"], "servo")) as (ctl, servo):
+        ctl.fmu.exitInitializationMode()
+        servo.fmu.exitInitializationMode()
+        ctl.fmu.doStep(0.0, 5e-4)  # shorter than ts: fine, u held
+        ctl.fmu.doStep(5e-4, 5e-4)
+        with pytest.raises(Exception, match="(?i)error"):
+            ctl.fmu.doStep(1e-3, 2e-3)  # passes the sample at 2 ms
+        with pytest.raises(Exception, match="(?i)error"):
+            servo.fmu.doStep(0.0, 1.5e-3)  # not a whole number of samples
