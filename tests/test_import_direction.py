@@ -23,7 +23,7 @@ ALLOWED: dict[str, set[str]] = {
     "study": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis",
               "files", "plots"},
 }
-ALWAYS = {"errors", "_typing", "_io"}
+ALWAYS = {"errors", "_typing", "_io", "__version__"}
 
 
 def _internal_targets(path: Path) -> set[str]:
