@@ -1,13 +1,15 @@
 """Every command and snippet of README.md runs, and does what its text says.
 
 The README is parsed: each ```sh block's commands run in order (``fuzzyservo ...`` in-process
-through ``fuzzyservo.cli.main``; ``make reproduce`` is the Makefile's recipe, which the
-session's ``reproduced`` fixture runs once for this and the study's tests; ``make test`` is
-this suite and is not run again), each ```python block is executed, each ```pycon block is run
-as a doctest. Every block runs in a scratch folder in which ``src`` points at this repository's
-``src/``, as a user's shell in a clone would. Every shell command must have a check below that
-holds it to what the README says of it; a command without one fails the suite, so an example
-added without a check, or one that stops doing what it says, is caught.
+through ``fuzzyservo.cli.main``; ``gcc`` and ``./PROGRAM`` as processes; ``make reproduce`` is
+the Makefile's recipe, which the session's ``reproduced`` fixture runs once for this and the
+study's tests; ``make test`` is this suite and is not run again), each ```python block is
+executed, each ```pycon block is run as a doctest, and a ```c block is the file its first
+comment names (``/* NAME.c: ... */``). Every block runs in a scratch folder in which ``src``
+points at this repository's ``src/``, as a user's shell in a clone would; in a chained section
+(:data:`CHAINED`) the blocks above it in the section run first. Every shell command must have
+a check below that holds it to what the README says of it; a command without one fails the
+suite, so an example added without a check, or one that stops doing what it says, is caught.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ import doctest
 import json
 import re
 import shlex
+import subprocess
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +40,7 @@ class Block:
     lang: str
     text: str
     line: int  # line of the opening fence
+    section: str = ""  # the "## " heading above it
 
     @property
     def id(self) -> str:
@@ -46,13 +51,16 @@ def _blocks() -> list[Block]:
     out = []
     lines = README.read_text(encoding="utf-8").splitlines()
     i = 0
+    section = ""
     while i < len(lines):
+        if lines[i].startswith("## "):
+            section = lines[i][3:].strip()
         m = re.match(r"^```(\w+)\s*$", lines[i])
         if m:
             j = i + 1
             while not lines[j].startswith("```"):
                 j += 1
-            out.append(Block(m.group(1), "\n".join(lines[i + 1:j]) + "\n", i + 1))
+            out.append(Block(m.group(1), "\n".join(lines[i + 1:j]) + "\n", i + 1, section))
             i = j
         i += 1
     return out
@@ -217,7 +225,41 @@ def _tune_pid2(d: Path, out: str) -> None:
     assert t.setup.overrides == (("load.mass", 40.0),) and t.setup.seed == 1
 
 
+def _export_c(d: Path, out: str) -> None:
+    header = (d / "ctl" / "stfpi.h").read_text()
+    # "records the package version, the gains, the sample time, the options and a SHA-256"
+    assert "fuzzyservo 0." in header and "ke = 34.02696824542279" in header and "0.001 s" in header
+    assert "initial_error = zero" in header and "SHA-256" in header
+    assert sorted(p.name for p in (d / "ctl").iterdir()) == ["stfpi.c", "stfpi.h"]
+
+
+def _recorded(d: Path, out: str) -> None:
+    assert len(read_run_csv(d / "recorded.csv").t) == 2001
+
+
+def _gcc_driver(d: Path, out: str) -> None:
+    assert (d / "driver").is_file()
+
+
+def _driver_run(d: Path, out: str) -> None:
+    assert out.strip() == "2001 samples, max |u_C - u_recorded| = 0"  # as the README says
+
+
+def _fmu(name: str, identifier: str) -> Check:
+    def check(d: Path, out: str) -> None:
+        with zipfile.ZipFile(d / name) as zf:
+            assert f"binaries/linux64/{identifier}.so" in zf.namelist()
+            assert b"fmiVersion=\"2.0\"" in zf.read("modelDescription.xml")
+    return check
+
+
 CHECKS: dict[str, Check] = {
+    "fuzzyservo export c --gains": _export_c,
+    "fuzzyservo simulate --duration 2 --gains": _recorded,
+    "gcc -std=c99 -O2 -Ictl": _gcc_driver,
+    "./driver recorded.csv": _driver_run,
+    "fuzzyservo export fmu --gains": _fmu("stfpi.fmu", "stfpi"),
+    "fuzzyservo export fmu --plant nonlinear": _fmu("servo.fmu", "servo_nonlinear"),
     "make reproduce": _reproduced,
     "fuzzyservo simulate --gains src/fuzzyservo/data/gains/linear-stfpi.toml": _row_stfpi_10,
     "--out stfpi.csv --metrics": _stfpi_run,
@@ -262,7 +304,54 @@ def scratch(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 def test_readme_has_the_two_commands_first() -> None:
     first = BLOCKS[0]
     assert first.lang == "sh" and _commands(first) == ["make reproduce", "make test"]
-    assert {b.lang for b in BLOCKS} <= {"sh", "python", "pycon"}
+    assert {b.lang for b in BLOCKS} <= {"sh", "python", "pycon", "c"}
+    assert all(b.section in CHAINED for b in BLOCKS if b.lang == "c")
+
+
+#: Sections whose blocks build on each other (a file one writes, the next compiles): before a
+#: block runs, the blocks above it in its section run in the same scratch folder.
+CHAINED = {"To hardware"}
+
+
+def _c_file(block: Block) -> str:
+    m = re.match(r"/\* ([\w.-]+\.c): ", block.text)
+    assert m, f"README line {block.line}: a C block starts with /* NAME.c: ... */"
+    return m.group(1)
+
+
+def _run_command(block: Block, cmd: str, scratch: Path, capsys: pytest.CaptureFixture[str]
+                 ) -> str:
+    """Run one shell command of the README in ``scratch``; returns its standard output."""
+    words = shlex.split(cmd)
+    if words[0] == "gcc" or words[0].startswith("./"):
+        proc = subprocess.run(words, cwd=scratch, capture_output=True, text=True, check=False)
+        assert proc.returncode == 0, f"README line {block.line}: {cmd!r}: {proc.stderr}"
+        return proc.stdout
+    assert words[0] == "fuzzyservo", f"README line {block.line}: {cmd!r}"
+    capsys.readouterr()
+    status = main(words[1:])
+    out, err = capsys.readouterr()
+    assert status == 0, f"README line {block.line}: {cmd!r} -> {status}: {err}"
+    return out
+
+
+def _replay_before(block: Block, scratch: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Run the blocks above ``block`` in its section, if the section is chained."""
+    if block.section not in CHAINED:
+        return
+    for b in BLOCKS:
+        if b is block or b.line > block.line:
+            break
+        if b.section != block.section:
+            continue
+        if b.lang == "c":
+            (scratch / _c_file(b)).write_text(b.text, encoding="utf-8")
+        elif b.lang == "sh":
+            for cmd in _commands(b):
+                _run_command(b, cmd, scratch, capsys)
+        elif b.lang == "python":
+            exec(compile(b.text, f"README.md:{b.line}", "exec"),  # noqa: S102
+                 {"__name__": "__readme__"})
 
 
 def test_every_command_has_a_check() -> None:
@@ -286,6 +375,7 @@ def _sh_params() -> list[object]:
 @pytest.mark.parametrize("block", _sh_params())
 def test_shell_block(block: Block, scratch: Path, capsys: pytest.CaptureFixture[str],
                      request: pytest.FixtureRequest) -> None:
+    _replay_before(block, scratch, capsys)
     for cmd in _commands(block):
         if cmd in NOT_RUN:
             continue
@@ -295,11 +385,7 @@ def test_shell_block(block: Block, scratch: Path, capsys: pytest.CaptureFixture[
             paper = request.getfixturevalue("reproduced")
             _check_for(cmd)(paper.parent, "")
             continue
-        assert words[0] == "fuzzyservo", f"README line {block.line}: {cmd!r}"
-        capsys.readouterr()
-        status = main(words[1:])
-        out, err = capsys.readouterr()
-        assert status == 0, f"README line {block.line}: {cmd!r} -> {status}: {err}"
+        out = _run_command(block, cmd, scratch, capsys)
         _check_for(cmd)(scratch, out)
 
 
@@ -317,7 +403,9 @@ WRITTEN: dict[str, Callable[[Path], None]] = {"runs.png": _png, "my-pid.toml": _
 
 @pytest.mark.parametrize("block", [b for b in BLOCKS if b.lang == "python"],
                          ids=lambda b: b.id)
-def test_python_block(block: Block, scratch: Path) -> None:
+def test_python_block(block: Block, scratch: Path,
+                      capsys: pytest.CaptureFixture[str]) -> None:
+    _replay_before(block, scratch, capsys)
     code = compile(block.text, f"README.md:{block.line}", "exec")
     exec(code, {"__name__": "__readme__"})  # noqa: S102 - the README's own code
     for name, check in WRITTEN.items():
