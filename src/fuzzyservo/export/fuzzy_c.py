@@ -47,9 +47,10 @@ _C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto "
     "if inline int long register restrict return short signed sizeof static struct switch "
     "typedef union unsigned void volatile while _Bool _Complex _Imaginary".split())
-#: Scratch of the smooth path beyond its knots and cuts: two quadrature stacks of 256 and
-#: the scan's abscissae and values (SCAN_CELLS + 1 each), as laid out in ``fs_smooth``.
-_SMOOTH_FIXED = 2 + 2 * 256 + 2 * (_g.SCAN_CELLS + 1)
+#: Scratch of the smooth path besides its knots and cuts: two quadrature stacks of 256, the
+#: scan's abscissae and values (SCAN_CELLS + 1 each), and the cuts' last 2, as laid out in
+#: ``fs_smooth``.
+_SMOOTH_FIXED = 2 * 256 + 2 * (_g.SCAN_CELLS + 1) + 2
 #: Cuts per knot of the smooth path: the knot, then up to CELL_CHANGES per scan cell.
 _CUTS_PER_KNOT = _g.CELL_CHANGES * _g.SCAN_CELLS + 1
 _PER_LINE_INTS = 12
@@ -151,12 +152,13 @@ def _real_check(name: str, real: Real) -> str:
 # --- packed general systems ---------------------------------------------------------------
 
 
-def _smooth_knots_bound(ints: IntArray) -> int:
-    """The most knots ``fs_smooth`` gathers for any smooth output of the packed system (0 if
-    it has none): 2 plus, per item that can fire, its term's parameter count plus 4."""
+def _smooth_scratch(ints: IntArray) -> int:
+    """Scratch ``fs_smooth`` needs for the worst smooth output of the packed system (0 if it
+    has none): the fixed stacks and scan, the knots the Python allocates (2, plus each item
+    that can fire: its term's parameter count plus 4) and 257 cuts per distinct knot (at most
+    2 plus, per term of the output, its parameter count plus 4)."""
     n_in, n_out = int(ints[_g.H_NIN]), int(ints[_g.H_NOUT])
     vt, tt, rt, ct = (int(ints[k]) for k in (_g.H_VARS, _g.H_TERMS, _g.H_RULES, _g.H_CONS))
-    agg = int(ints[_g.H_AGG])
     worst = 0
     for o in range(n_out):
         if int(ints[int(ints[_g.H_OUTS]) + _g._OUT_FIELDS * o]) != _g._M_SMOOTH:
@@ -166,15 +168,16 @@ def _smooth_knots_bound(ints: IntArray) -> int:
         def npar(j: int, first: int = first) -> int:
             return int(ints[tt + 3 * (first + j) + 2])
 
-        if agg == 0:  # max: one item per term
-            nk = 2 + sum(npar(j) + 4 for j in range(n_t))
+        distinct = 2 + sum(npar(j) + 4 for j in range(n_t))
+        if int(ints[_g.H_AGG]) == 0:  # max: one item per term
+            items = distinct
         else:  # one item per (rule, consequent) naming output o
-            nk = 2
+            items = 2
             for r in range(int(ints[_g.H_NRULES])):
                 c0, nc = ct + int(ints[rt + 4 * r + 2]), int(ints[rt + 4 * r + 3])
-                nk += sum(npar(int(ints[c0 + 2 * c + 1])) + 4 for c in range(nc)
-                          if int(ints[c0 + 2 * c]) == o)
-        worst = max(worst, nk)
+                items += sum(npar(int(ints[c0 + 2 * c + 1])) + 4 for c in range(nc)
+                             if int(ints[c0 + 2 * c]) == o)
+        worst = max(worst, _SMOOTH_FIXED + items + distinct * _CUTS_PER_KNOT)
     return worst
 
 
@@ -191,11 +194,10 @@ def scratch_sizes(ints: IntArray) -> tuple[int, int]:
     n_work, n_iwork : int
         Length of the ``work`` (``fs_real``) and ``iwork`` (``int32_t``) arrays: the Python
         layout (``ints[H_WORK]``, ``ints[H_IWORK]``), the point and outputs of
-        ``fs_sys_eval2``, and the smooth path's knots, cuts, stacks and scan.
+        ``fs_sys_eval2``, and the smooth path's stacks, scan, knots and cuts.
     """
-    nk = _smooth_knots_bound(ints)
-    smooth = nk + nk * _CUTS_PER_KNOT + _SMOOTH_FIXED if nk else 0
-    n_work = int(ints[_g.H_WORK]) + int(ints[_g.H_NIN]) + int(ints[_g.H_NOUT]) + smooth
+    n_work = int(ints[_g.H_WORK]) + int(ints[_g.H_NIN]) + int(ints[_g.H_NOUT]) + \
+        _smooth_scratch(ints)
     return n_work, max(int(ints[_g.H_IWORK]), 1)
 
 

@@ -1244,8 +1244,10 @@ FS_MAYBE_UNUSED static void fs_cand(fs_cands *cs, fs_real x, fs_real v) {
     }
 }
 
-/* the defuzzified smooth aggregate of output o (NaN if empty). Scratch `scr`:
- * fs_smooth_scratch(nk_max) reals (fuzzyservo.export.fuzzy_c computes its bound). */
+/* the defuzzified smooth aggregate of output o (NaN if empty). Scratch `scr`: the two
+ * quadrature stacks, the scan's abscissae and values, the knots (2 + the fired items'
+ * parameter counts + 4 each, as the Python allocates) and the cuts (fuzzyservo.export.
+ * fuzzy_c.scratch_sizes bounds the total) */
 FS_MAYBE_UNUSED static fs_real fs_smooth(const int32_t *ints, const fs_real *f, long o,
                                          long n_items, const int32_t *lab, const fs_real *h,
                                          long mode, fs_real *scr) {
@@ -1267,7 +1269,13 @@ FS_MAYBE_UNUSED static fs_real fs_smooth(const int32_t *ints, const fs_real *f, 
     cx.h = h;
     /* knots of the fired terms */
     for (i = 0; i < n_items; ++i) nk_max += ints[cx.tt + 3 * (cx.first + lab[i]) + 2] + 4;
-    knots = scr;
+    stack_a = scr;
+    stack_b = stack_a + FS_QUAD_STACK;
+    ys = stack_b + FS_QUAD_STACK;
+    gs = ys + (FS_SCAN_CELLS + 1);
+    knots = gs + (FS_SCAN_CELLS + 1);
+    /* the cuts last: at most 257 per distinct knot (equal knots bound no piece), so their
+     * scratch is bounded by the output's distinct terms, not by the fired items */
     cuts = knots + nk_max;
     knots[0] = lo;
     knots[1] = hi;
@@ -1288,10 +1296,6 @@ FS_MAYBE_UNUSED static fs_real fs_smooth(const int32_t *ints, const fs_real *f, 
         }
         knots[j] = v;
     }
-    stack_a = cuts + (nk * (FS_CELL_CHANGES * FS_SCAN_CELLS + 1) + 2);
-    stack_b = stack_a + FS_QUAD_STACK;
-    ys = stack_b + FS_QUAD_STACK;
-    gs = ys + (FS_SCAN_CELLS + 1);
     /* pieces: the knots, and the points where the signature changes on a scan (bisected) */
     for (k = 0; k < nk - 1; ++k) {
         p = knots[k];
