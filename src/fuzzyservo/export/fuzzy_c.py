@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 import re
 from importlib import resources
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 
@@ -36,7 +36,7 @@ from ..errors import ParameterError
 from ..fuzzy import general as _g
 from ..fuzzy.kernels import LIMS_SIZE
 
-__all__ = ["emit_pair", "emit_system", "fragment", "scratch_sizes"]
+__all__ = ["Scratch", "emit_pair", "emit_system", "fragment", "scratch_sizes"]
 
 Real = Literal["double", "float"]
 
@@ -181,8 +181,16 @@ def _smooth_scratch(ints: IntArray) -> int:
     return worst
 
 
-def scratch_sizes(ints: IntArray) -> tuple[int, int]:
-    """Scratch ``fs_sys_eval`` and ``fs_sys_eval2`` need for a packed system.
+class Scratch(NamedTuple):
+    """Scratch sizes of a packed system's C evaluation (:func:`scratch_sizes`)."""
+
+    work: int  #: ``fs_real`` work array: the Python layout, the point and the outputs
+    iwork: int  #: ``int32_t`` work array
+    smooth: int  #: ``fs_real`` scratch of the smooth path (0: the system has no smooth output)
+
+
+def scratch_sizes(ints: IntArray) -> Scratch:
+    """Scratch the C evaluation of a packed system needs.
 
     Parameters
     ----------
@@ -191,14 +199,16 @@ def scratch_sizes(ints: IntArray) -> tuple[int, int]:
 
     Returns
     -------
-    n_work, n_iwork : int
-        Length of the ``work`` (``fs_real``) and ``iwork`` (``int32_t``) arrays: the Python
-        layout (``ints[H_WORK]``, ``ints[H_IWORK]``), the point and outputs of
-        ``fs_sys_eval2``, and the smooth path's stacks, scan, knots and cuts.
+    Scratch
+        ``work``: ``ints[H_WORK]`` (the Python layout) plus the inputs and outputs of
+        ``fs_sys_eval2``; ``iwork``: ``ints[H_IWORK]``; ``smooth``: the smooth path's
+        stacks, scan, knots and cuts. ``fs_sys_eval_s`` and ``fs_sys_eval2_s`` take the
+        smooth scratch as a separate array (NULL when ``smooth`` is 0); ``fs_sys_eval`` and
+        ``fs_sys_eval2`` expect it at the end of a work array of ``work + smooth``.
     """
-    n_work = int(ints[_g.H_WORK]) + int(ints[_g.H_NIN]) + int(ints[_g.H_NOUT]) + \
-        _smooth_scratch(ints)
-    return n_work, max(int(ints[_g.H_IWORK]), 1)
+    n_work = int(ints[_g.H_WORK]) + int(ints[_g.H_NIN]) + int(ints[_g.H_NOUT])
+    return Scratch(work=n_work, iwork=max(int(ints[_g.H_IWORK]), 1),
+                   smooth=_smooth_scratch(ints))
 
 
 def _packed(rules: IntArray, lims: FloatArray, real: Real, what: str
@@ -218,19 +228,22 @@ def _packed(rules: IntArray, lims: FloatArray, real: Real, what: str
 
 def _emit_packed(name: str, ints: IntArray, floats: FloatArray, real: Real) -> str:
     up = name.upper()
-    n_work, n_iwork = scratch_sizes(ints)
+    sz = scratch_sizes(ints)
+    smooth_def = f"#define {up}_SMOOTH {sz.smooth}\n" if sz.smooth else ""
+    smooth_arr = f"    FS_SCRATCH fs_real smooth[{up}_SMOOTH];\n" if sz.smooth else ""
     return (
         f"/* fuzzy system {name}: general evaluator (fuzzyservo.fuzzy.general), "
         f"{int(ints[_g.H_NIN])} inputs, {int(ints[_g.H_NOUT])} output(s), output 0 used */\n"
         + _real_check(name, real)
-        + f"#define {up}_WORK {n_work}\n#define {up}_IWORK {n_iwork}\n"
-        f"static const int32_t {name}_ints[{ints.size}] = {_int_array(ints)};\n"
+        + f"#define {up}_WORK {sz.work}\n#define {up}_IWORK {sz.iwork}\n" + smooth_def
+        + f"static const int32_t {name}_ints[{ints.size}] = {_int_array(ints)};\n"
         f"static const fs_real {name}_floats[{max(floats.size, 1)}] = "
         f"{_real_array(floats if floats.size else np.zeros(1), real, name + '_floats')};\n"
         f"FS_MAYBE_UNUSED static fs_real {name}(fs_real x1, fs_real x2) {{\n"
         f"    FS_SCRATCH fs_real work[{up}_WORK];\n"
-        f"    FS_SCRATCH int32_t iwork[{up}_IWORK];\n"
-        f"    return fs_sys_eval2(x1, x2, {name}_ints, {name}_floats, work, iwork);\n"
+        f"    FS_SCRATCH int32_t iwork[{up}_IWORK];\n" + smooth_arr
+        + f"    return fs_sys_eval2_s(x1, x2, {name}_ints, {name}_floats, work, iwork, "
+        f"{'smooth' if sz.smooth else 'NULL'});\n"
         f"}}\n")
 
 
@@ -290,7 +303,9 @@ def emit_system(name: str, rules: IntArray, lims: FloatArray, *, real: Real) -> 
     name : str
         C identifier of the function; its tables are ``name_rules`` and ``name_lims`` (a
         rule table) or ``name_ints`` and ``name_floats`` (a packed system), its scratch sizes
-        the macros ``NAME_WORK`` and ``NAME_IWORK`` (upper case).
+        the macros ``NAME_WORK``, ``NAME_IWORK`` and ``NAME_SMOOTH`` (upper case; the last
+        only for a system with a smooth output): local arrays of the function, storage class
+        ``FS_SCRATCH`` (empty by default).
     rules : int ndarray
         A rule table (n2, n1 >= 2) for :func:`~fuzzyservo.fuzzy.kernels.eval_uniform_grid`,
         or a packed system's integers, shape (1, N) as the controllers hold them (or (N,)).
@@ -315,7 +330,7 @@ def emit_system(name: str, rules: IntArray, lims: FloatArray, *, real: Real) -> 
     _check_real(real)
     up = name.upper() if isinstance(name, str) else ""
     _check_name(name, (f"{name}_rules", f"{name}_lims", f"{name}_ints", f"{name}_floats",
-                       f"{up}_WORK", f"{up}_IWORK"))
+                       f"{up}_WORK", f"{up}_IWORK", f"{up}_SMOOTH"))
     if _is_packed(rules):
         ints, floats = _packed(rules, lims, real, name)
         return _emit_packed(name, ints, floats, real)

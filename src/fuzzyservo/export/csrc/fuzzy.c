@@ -1244,7 +1244,8 @@ FS_MAYBE_UNUSED static void fs_cand(fs_cands *cs, fs_real x, fs_real v) {
     }
 }
 
-/* the defuzzified smooth aggregate of output o (NaN if empty). Scratch `scr`: the two
+/* the defuzzified smooth aggregate of output o (NaN if empty). Scratch `scr` (NULL only
+ * for a system without smooth outputs, which never calls this): the two
  * quadrature stacks, the scan's abscissae and values, the knots (2 + the fired items'
  * parameter counts + 4 each, as the Python allocates) and the cuts (fuzzyservo.export.
  * fuzzy_c.scratch_sizes bounds the total) */
@@ -1258,6 +1259,7 @@ FS_MAYBE_UNUSED static fs_real fs_smooth(const int32_t *ints, const fs_real *f, 
     uint64_t sa, sb, sc;
     fs_smooth_ctx cx;
     fs_cands cs;
+    if (!scr) return FS_NAN; /* the caller has no smooth scratch: the system has no such output */
     cx.ints = ints;
     cx.f = f;
     cx.tt = ints[FS_H_TERMS];
@@ -1626,17 +1628,22 @@ FS_MAYBE_UNUSED static void fs_eval_partition(const fs_real *x, const int32_t *p
 /* ======================================================================================
  * one point (general.eval_point, eval_first2)
  *
- * Scratch: work[] of reals: [0, ints[H_WORK]) the Python layout, then n_in + n_out
- * for fs_sys_eval2's point and outputs, then the smooth path's scratch; iwork[] of
- * ints[H_IWORK] integers. fuzzyservo.export.fuzzy_c.scratch_sizes gives both sizes.
+ * Scratch: work[] of ints[H_WORK] + n_in + n_out reals (the Python layout, then the point and
+ * the outputs of fs_sys_eval2), iwork[] of ints[H_IWORK] integers, and for a system with a
+ * smooth output the smooth path's scratch: a separate array (the _s functions; NULL when the
+ * system has no smooth output) or the end of work (fs_sys_eval, fs_sys_eval2).
+ * fuzzyservo.export.fuzzy_c.scratch_sizes gives every size. The generated functions pass the
+ * smooth scratch separately: with the tables constant, a compiler sees the smooth path's
+ * offsets in a work array sized without it (never reached, but -Warray-bounds says so).
  */
 
 /* every output at the point x (n_in) into out (n_out); a NaN input gives NaN outputs */
-FS_MAYBE_UNUSED static void fs_sys_eval(const fs_real *x, fs_real *out, const int32_t *ints,
-                                        const fs_real *f, fs_real *work, int32_t *iw) {
+FS_MAYBE_UNUSED static void fs_sys_eval_s(const fs_real *x, fs_real *out, const int32_t *ints,
+                                          const fs_real *f, fs_real *work, int32_t *iw,
+                                          fs_real *smooth_scr) {
     long n_in = ints[FS_H_NIN], n_out = ints[FS_H_NOUT], fvo = ints[FS_H_FVARS], i, o;
     long n_terms, n_rules, items, pos, nf, ot, impl, agg, dmode, tt;
-    fs_real *xin = work, *mu, *w, *stk, *hts, *h, *rest, *smooth_scr;
+    fs_real *xin = work, *mu, *w, *stk, *hts, *h, *rest;
     int32_t *lab, *fired, *nz;
     for (i = 0; i < n_in; ++i) {
         if (x[i] != x[i]) {
@@ -1677,7 +1684,6 @@ FS_MAYBE_UNUSED static void fs_sys_eval(const fs_real *x, fs_real *out, const in
     h = work + pos;
     pos += items;
     rest = work + pos;
-    smooth_scr = work + ints[FS_H_WORK] + n_in + n_out;
     lab = iw;
     fired = iw + items;
     nz = iw + items + n_rules;
@@ -1755,14 +1761,30 @@ FS_MAYBE_UNUSED static void fs_sys_eval(const fs_real *x, fs_real *out, const in
     }
 }
 
-/* the first output of a two-input system at (x1, x2): the controllers' call */
-FS_MAYBE_UNUSED static fs_real fs_sys_eval2(fs_real x1, fs_real x2, const int32_t *ints,
-                                            const fs_real *floats, fs_real *work, int32_t *iwork) {
+/* as fs_sys_eval_s, with the smooth path's scratch at the end of work */
+FS_MAYBE_UNUSED static void fs_sys_eval(const fs_real *x, fs_real *out, const int32_t *ints,
+                                        const fs_real *f, fs_real *work, int32_t *iw) {
+    fs_sys_eval_s(x, out, ints, f, work, iw,
+                  work + ints[FS_H_WORK] + ints[FS_H_NIN] + ints[FS_H_NOUT]);
+}
+
+/* the first output of a two-input system at (x1, x2): the controllers' call. `smooth` as in
+ * fs_sys_eval_s; work holds ints[H_WORK] + 2 + n_out reals (the point and the outputs) */
+FS_MAYBE_UNUSED static fs_real fs_sys_eval2_s(fs_real x1, fs_real x2, const int32_t *ints,
+                                              const fs_real *floats, fs_real *work,
+                                              int32_t *iwork, fs_real *smooth) {
     fs_real *x = work + ints[FS_H_WORK], *out = x + 2;
     x[0] = x1;
     x[1] = x2;
-    fs_sys_eval(x, out, ints, floats, work, iwork);
+    fs_sys_eval_s(x, out, ints, floats, work, iwork, smooth);
     return out[0];
+}
+
+/* as fs_sys_eval2_s, with the smooth path's scratch at the end of work */
+FS_MAYBE_UNUSED static fs_real fs_sys_eval2(fs_real x1, fs_real x2, const int32_t *ints,
+                                            const fs_real *floats, fs_real *work, int32_t *iwork) {
+    return fs_sys_eval2_s(x1, x2, ints, floats, work, iwork,
+                          work + ints[FS_H_WORK] + 2 + ints[FS_H_NOUT]);
 }
 
 #endif /* FS_FUZZY_FRAGMENT */
