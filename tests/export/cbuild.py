@@ -12,7 +12,8 @@ import subprocess
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["SANITIZE", "STRICT", "compile_executable", "compile_shared", "gcc"]
+__all__ = ["SANITIZE", "STRICT", "compile_executable", "compile_objects", "compile_shared",
+           "gcc"]
 
 #: The flags generated code must compile cleanly under (docs/export.md).
 STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
@@ -38,8 +39,9 @@ def _write(sources: Sequence[str] | str, out_dir: Path, stem: str) -> list[Path]
     return paths
 
 
-def _run(cmd: list[str]) -> None:
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=False, timeout=600)
+def _run(cmd: list[str], cwd: Path | None = None) -> None:
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False, timeout=600,
+                          cwd=cwd)
     if proc.returncode != 0:
         raise AssertionError(f"gcc failed ({' '.join(cmd)}):\n{proc.stderr}")
 
@@ -70,3 +72,13 @@ def compile_executable(sources: Sequence[str] | str, out_dir: Path, *,
     _run([gcc(), *STRICT, *flags, *(SANITIZE if sanitize else ()), "-o", str(exe),
           *map(str, paths), "-lm"])
     return exe
+
+
+def compile_objects(sources: Sequence[str] | str, out_dir: Path, *,
+                    flags: Sequence[str] = ("-O2",), name: str = "unit") -> list[Path]:
+    """Compile each C source text on its own (a translation unit each, ``-c``, no link) in
+    one gcc run; returns the object files. For checks that a text compiles alone: with one
+    caller per unit the compiler inlines and propagates constants across everything."""
+    paths = _write(sources, out_dir, name)
+    _run([gcc(), *STRICT, *flags, "-c", *map(str, paths)], cwd=out_dir)
+    return [p.with_suffix(".o") for p in paths]

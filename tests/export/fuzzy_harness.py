@@ -6,8 +6,9 @@ One source serves both ways of running it:
   ``fs_grid_pair``, ``fs_sys_eval``, ``fs_sys_eval2`` on tables passed from numpy, and of the
   functions :func:`~fuzzyservo.export.fuzzy_c.emit_system` / ``emit_pair`` generated;
 - an executable (``-DFSH_MAIN``) that reads cases from a binary file and writes the outputs
-  (:func:`write_cases`, :func:`read_outputs`): the sanitizer builds run this way, each scratch
-  array ``malloc``'ed at exactly the size ``scratch_sizes`` claims.
+  (:func:`run_cases`): the sanitizer builds run this way, through ``fs_sys_eval_s`` and
+  ``fs_sys_eval2_s`` with each scratch array ``malloc``'ed at exactly the size
+  ``scratch_sizes`` claims (the library runs ``fs_sys_eval`` and ``fs_sys_eval2``).
 """
 
 from __future__ import annotations
@@ -150,19 +151,23 @@ int main(int argc, char **argv)
             }
             free(ra); free(rb); free(la); free(lb); free(x1); free(x2); free(oa); free(ob);
         } else if (kind == 2) {
-            long n_ints = fsh_int(), n_floats, n_work, n_iwork, n_in, n_out, n, i;
+            long n_ints = fsh_int(), n_floats, n_work, n_iwork, n_smooth, n_in, n_out, n, i;
             int32_t *ints = fsh_ints(n_ints), *iwork;
-            fs_real *f, *work, *x, *out, *x1, *x2, *o2;
+            fs_real *f, *work, *x, *out, *x1, *x2, *o2, *smooth = NULL;
             n_floats = fsh_int();
             f = fsh_reals(n_floats);
             n_work = fsh_int();
             n_iwork = fsh_int();
+            n_smooth = fsh_int();
             n_in = fsh_int();
             n_out = fsh_int();
             n = fsh_int();
             x = fsh_reals(n * n_in);
+            /* the _s functions, each scratch array exactly as large as claimed */
             work = (fs_real *)malloc((size_t)n_work * sizeof *work);
             iwork = (int32_t *)malloc((size_t)n_iwork * sizeof *iwork);
+            if (n_smooth > 0) smooth = (fs_real *)malloc((size_t)n_smooth * sizeof *smooth);
+            if (n_smooth > 0 && !smooth) fsh_fail("malloc");
             out = (fs_real *)malloc((size_t)(n * n_out > 0 ? n * n_out : 1) * sizeof *out);
             if (!work || !iwork || !out) fsh_fail("malloc");
             /* one point at a time, each in an array of exactly n_in (overreads are caught) */
@@ -171,7 +176,7 @@ int main(int argc, char **argv)
                 fs_real *oi = (fs_real *)malloc((size_t)n_out * sizeof *oi);
                 if (!xi || !oi) fsh_fail("malloc");
                 memcpy(xi, x + i * n_in, (size_t)n_in * sizeof *xi);
-                fs_sys_eval(xi, oi, ints, f, work, iwork);
+                fs_sys_eval_s(xi, oi, ints, f, work, iwork, smooth);
                 memcpy(out + i * n_out, oi, (size_t)n_out * sizeof *oi);
                 free(xi);
                 free(oi);
@@ -186,11 +191,12 @@ int main(int argc, char **argv)
                     x1[i] = x[2 * i];
                     x2[i] = x[2 * i + 1];
                 }
-                fsh_sys2((int)n, x1, x2, o2, ints, f, work, iwork);
+                for (i = 0; i < n; ++i)
+                    o2[i] = fs_sys_eval2_s(x1[i], x2[i], ints, f, work, iwork, smooth);
                 fsh_put(o2, n);
                 free(x1); free(x2); free(o2);
             }
-            free(ints); free(f); free(work); free(iwork); free(x); free(out);
+            free(ints); free(f); free(work); free(iwork); free(smooth); free(x); free(out);
         } else if (kind == 3) {
             int k = fsh_int(), n = fsh_int();
             fs_real *x1 = fsh_reals(n), *x2 = fsh_reals(n), *oa, *ob;
@@ -305,8 +311,9 @@ class CFuzzy:
         return oa.astype(np.float64), ob.astype(np.float64)
 
     def _scratch(self, ints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        n_work, n_iwork = scratch_sizes(ints)
-        return np.empty(n_work, dtype=self.dtype), np.empty(n_iwork, dtype=np.int32)
+        sz = scratch_sizes(ints)  # fs_sys_eval(2): the smooth scratch at the end of work
+        return np.empty(sz.work + sz.smooth, dtype=self.dtype), np.empty(sz.iwork,
+                                                                           dtype=np.int32)
 
     def sys(self, x: np.ndarray, ints: np.ndarray, floats: np.ndarray) -> np.ndarray:
         """fs_sys_eval at each row of x: (n, n_out)."""
@@ -372,9 +379,10 @@ def pair_case(ra: np.ndarray, la: np.ndarray, rb: np.ndarray, lb: np.ndarray, x:
 def sys_case(ints: np.ndarray, floats: np.ndarray, x: np.ndarray) -> bytes:
     """A case of fs_sys_eval at the rows of x (n, n_in): n n_out outputs, then (two inputs)
     n of fs_sys_eval2."""
-    n_work, n_iwork = scratch_sizes(ints)
-    return _i(2) + _i(ints.size) + _ia(ints) + _i(floats.size) + _da(floats) + _i(n_work) + \
-        _i(n_iwork) + _i(ints[1]) + _i(ints[2]) + _i(x.shape[0]) + _da(x.reshape(-1))
+    sz = scratch_sizes(ints)
+    return _i(2) + _i(ints.size) + _ia(ints) + _i(floats.size) + _da(floats) + _i(sz.work) + \
+        _i(sz.iwork) + _i(sz.smooth) + _i(ints[1]) + _i(ints[2]) + _i(x.shape[0]) + \
+        _da(x.reshape(-1))
 
 
 def emitted_case(k: int, x: np.ndarray) -> bytes:
