@@ -6,8 +6,8 @@ One source serves both ways of running it:
   ``fs_grid_pair``, ``fs_sys_eval``, ``fs_sys_eval2`` on tables passed from numpy, and of the
   functions :func:`~fuzzyservo.export.fuzzy_c.emit_system` / ``emit_pair`` generated;
 - an executable (``-DFSH_MAIN``) that reads cases from a binary file and writes the outputs
-  (:func:`run_cases`): the sanitizer builds run this way, through ``fs_sys_eval_s`` and
-  ``fs_sys_eval2_s`` with each scratch array ``malloc``'ed at exactly the size
+  (:func:`run_cases`): the sanitizer builds run this way, through ``fs_sys_eval_s`` (and
+  ``fs_sys_eval2`` for two inputs) with each scratch array ``malloc``'ed at exactly the size
   ``scratch_sizes`` claims (the library runs ``fs_sys_eval`` and ``fs_sys_eval2``).
 """
 
@@ -151,7 +151,8 @@ int main(int argc, char **argv)
             }
             free(ra); free(rb); free(la); free(lb); free(x1); free(x2); free(oa); free(ob);
         } else if (kind == 2) {
-            long n_ints = fsh_int(), n_floats, n_work, n_iwork, n_smooth, n_in, n_out, n, i;
+            long n_ints = fsh_int(), n_floats, n_work, n_iwork, n_smooth, n_single, n_in, n_out;
+            long n, i;
             int32_t *ints = fsh_ints(n_ints), *iwork;
             fs_real *f, *work, *x, *out, *x1, *x2, *o2, *smooth = NULL;
             n_floats = fsh_int();
@@ -159,6 +160,7 @@ int main(int argc, char **argv)
             n_work = fsh_int();
             n_iwork = fsh_int();
             n_smooth = fsh_int();
+            n_single = fsh_int();
             n_in = fsh_int();
             n_out = fsh_int();
             n = fsh_int();
@@ -183,18 +185,19 @@ int main(int argc, char **argv)
             }
             fsh_put(out, n * n_out);
             if (n_in == 2) {
+                /* fs_sys_eval2: everything in one array of exactly n_single */
+                fs_real *one = (fs_real *)malloc((size_t)n_single * sizeof *one);
                 x1 = (fs_real *)malloc((size_t)(n > 0 ? n : 1) * sizeof *x1);
                 x2 = (fs_real *)malloc((size_t)(n > 0 ? n : 1) * sizeof *x2);
                 o2 = (fs_real *)malloc((size_t)(n > 0 ? n : 1) * sizeof *o2);
-                if (!x1 || !x2 || !o2) fsh_fail("malloc");
+                if (!one || !x1 || !x2 || !o2) fsh_fail("malloc");
                 for (i = 0; i < n; ++i) {
                     x1[i] = x[2 * i];
                     x2[i] = x[2 * i + 1];
                 }
-                for (i = 0; i < n; ++i)
-                    o2[i] = fs_sys_eval2_s(x1[i], x2[i], ints, f, work, iwork, smooth);
+                for (i = 0; i < n; ++i) o2[i] = fs_sys_eval2(x1[i], x2[i], ints, f, one, iwork);
                 fsh_put(o2, n);
-                free(x1); free(x2); free(o2);
+                free(one); free(x1); free(x2); free(o2);
             }
             free(ints); free(f); free(work); free(iwork); free(smooth); free(x); free(out);
         } else if (kind == 3) {
@@ -311,9 +314,8 @@ class CFuzzy:
         return oa.astype(np.float64), ob.astype(np.float64)
 
     def _scratch(self, ints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        sz = scratch_sizes(ints)  # fs_sys_eval(2): the smooth scratch at the end of work
-        return np.empty(sz.work + sz.smooth, dtype=self.dtype), np.empty(sz.iwork,
-                                                                           dtype=np.int32)
+        sz = scratch_sizes(ints)  # fs_sys_eval(2): all in one array
+        return np.empty(sz.single, dtype=self.dtype), np.empty(sz.iwork, dtype=np.int32)
 
     def sys(self, x: np.ndarray, ints: np.ndarray, floats: np.ndarray) -> np.ndarray:
         """fs_sys_eval at each row of x: (n, n_out)."""
@@ -381,8 +383,8 @@ def sys_case(ints: np.ndarray, floats: np.ndarray, x: np.ndarray) -> bytes:
     n of fs_sys_eval2."""
     sz = scratch_sizes(ints)
     return _i(2) + _i(ints.size) + _ia(ints) + _i(floats.size) + _da(floats) + _i(sz.work) + \
-        _i(sz.iwork) + _i(sz.smooth) + _i(ints[1]) + _i(ints[2]) + _i(x.shape[0]) + \
-        _da(x.reshape(-1))
+        _i(sz.iwork) + _i(sz.smooth) + _i(sz.single) + _i(ints[1]) + _i(ints[2]) + \
+        _i(x.shape[0]) + _da(x.reshape(-1))
 
 
 def emitted_case(k: int, x: np.ndarray) -> bytes:

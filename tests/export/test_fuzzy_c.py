@@ -700,6 +700,8 @@ def test_emitted_tables_are_exact() -> None:
     sz = scratch_sizes(rules[0])
     assert f"#define SYS_WORK {sz.work}\n" in text and f"#define SYS_IWORK {sz.iwork}\n" in text
     assert sz.smooth == 0 and "SYS_SMOOTH" not in text and "iwork, NULL);" in text
+    # the partition path: the inputs and its scratch only (7 + 7 input terms, 7 output terms)
+    assert sz.work == 2 + (2 + 14 + 7 + 8) < rules[0, general.H_WORK]
     ftext = emit_system("sys", rules, lims, real="float")
     body = ftext[ftext.index("sys_floats["):].split("};")[0].split("=", 1)[1]
     lits = [v.strip(" {\n") for v in body.split(",")]
@@ -938,12 +940,16 @@ def test_names_the_generator_uses_are_accepted() -> None:
 
 def test_scratch_sizes_cover_every_path() -> None:
     packed = loop_system(read_system(PACKAGE_SYSTEMS / "paper-du.fis")).kernel_args()[0][0]
-    assert scratch_sizes(packed) == (packed[general.H_WORK] + 2 + 1, packed[general.H_IWORK], 0)
+    assert scratch_sizes(packed) == (2 + (2 + 14 + 7 + 8), packed[general.H_IWORK], 0,
+                                     packed[general.H_WORK] + 2 + 1)
     smooth = compile_system(SMOOTH).ints
     # the worst smooth output of SMOOTH (max aggregation: one item per term) is m: 2 + (2 + 4)
     # + (4 + 4) + (3 + 4) + (2 + 4) = 29 knots, 257 cuts per knot (+ 2), two stacks of 256,
     # the scan's 2 x 33
-    assert scratch_sizes(smooth).smooth == 29 + 29 * 257 + 2 + 512 + 66
+    sz = scratch_sizes(smooth)
+    assert sz.smooth == 29 + 29 * 257 + 2 + 512 + 66
+    assert (sz.work, sz.single) == (smooth[general.H_WORK],
+                                    smooth[general.H_WORK] + 2 + 4 + sz.smooth)
     # sum aggregation, every rule twice: one knot list entry per item (rule, consequent), 2 +
     # 2 x 27 for m, but the cuts still bounded by the 29 distinct knots
     s = compile_system(dataclasses.replace(SMOOTH, aggregation="sum",

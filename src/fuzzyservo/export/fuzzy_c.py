@@ -184,9 +184,10 @@ def _smooth_scratch(ints: IntArray) -> int:
 class Scratch(NamedTuple):
     """Scratch sizes of a packed system's C evaluation (:func:`scratch_sizes`)."""
 
-    work: int  #: ``fs_real`` work array: the Python layout, the point and the outputs
-    iwork: int  #: ``int32_t`` work array
+    work: int  #: ``fs_real`` work of ``fs_sys_eval_s``: the evaluator's layout
+    iwork: int  #: ``int32_t`` work
     smooth: int  #: ``fs_real`` scratch of the smooth path (0: the system has no smooth output)
+    single: int  #: ``fs_real`` work of ``fs_sys_eval`` / ``fs_sys_eval2``: all in one array
 
 
 def scratch_sizes(ints: IntArray) -> Scratch:
@@ -200,15 +201,22 @@ def scratch_sizes(ints: IntArray) -> Scratch:
     Returns
     -------
     Scratch
-        ``work``: ``ints[H_WORK]`` (the Python layout) plus the inputs and outputs of
-        ``fs_sys_eval2``; ``iwork``: ``ints[H_IWORK]``; ``smooth``: the smooth path's
-        stacks, scan, knots and cuts. ``fs_sys_eval_s`` and ``fs_sys_eval2_s`` take the
-        smooth scratch as a separate array (NULL when ``smooth`` is 0); ``fs_sys_eval`` and
-        ``fs_sys_eval2`` expect it at the end of a work array of ``work + smooth``.
+        ``work``: the evaluator's layout, ``ints[H_WORK]`` (the Python allocation), or for a
+        system on the partition fast path only the inputs and that path's scratch;
+        ``iwork``: ``ints[H_IWORK]``; ``smooth``: the smooth path's stacks, scan, knots and
+        cuts (``fs_sys_eval_s`` takes them as a separate array, NULL when 0); ``single``:
+        the one array of ``fs_sys_eval`` and ``fs_sys_eval2`` (``ints[H_WORK]``, the point
+        and the outputs, the smooth scratch).
     """
-    n_work = int(ints[_g.H_WORK]) + int(ints[_g.H_NIN]) + int(ints[_g.H_NOUT])
-    return Scratch(work=n_work, iwork=max(int(ints[_g.H_IWORK]), 1),
-                   smooth=_smooth_scratch(ints))
+    n_in, n_out = int(ints[_g.H_NIN]), int(ints[_g.H_NOUT])
+    smooth = _smooth_scratch(ints)
+    work = int(ints[_g.H_WORK])
+    if int(ints[_g.H_PART]) >= 0:  # eval_partition(x, ..., work[n_in:]): partition.scratch_sizes
+        vt = int(ints[_g.H_VARS])
+        terms = sum(int(ints[vt + 2 * v + 1]) for v in range(n_in + n_out))
+        work = n_in + (n_in + terms + 8)
+    return Scratch(work=work, iwork=max(int(ints[_g.H_IWORK]), 1), smooth=smooth,
+                   single=int(ints[_g.H_WORK]) + n_in + n_out + smooth)
 
 
 def _packed(rules: IntArray, lims: FloatArray, real: Real, what: str
@@ -229,21 +237,26 @@ def _packed(rules: IntArray, lims: FloatArray, real: Real, what: str
 def _emit_packed(name: str, ints: IntArray, floats: FloatArray, real: Real) -> str:
     up = name.upper()
     sz = scratch_sizes(ints)
+    n_out = int(ints[_g.H_NOUT])
     smooth_def = f"#define {up}_SMOOTH {sz.smooth}\n" if sz.smooth else ""
     smooth_arr = f"    FS_SCRATCH fs_real smooth[{up}_SMOOTH];\n" if sz.smooth else ""
     return (
         f"/* fuzzy system {name}: general evaluator (fuzzyservo.fuzzy.general), "
-        f"{int(ints[_g.H_NIN])} inputs, {int(ints[_g.H_NOUT])} output(s), output 0 used */\n"
+        f"{int(ints[_g.H_NIN])} inputs, {n_out} output(s), output 0 used */\n"
         + _real_check(name, real)
         + f"#define {up}_WORK {sz.work}\n#define {up}_IWORK {sz.iwork}\n" + smooth_def
         + f"static const int32_t {name}_ints[{ints.size}] = {_int_array(ints)};\n"
         f"static const fs_real {name}_floats[{max(floats.size, 1)}] = "
         f"{_real_array(floats if floats.size else np.zeros(1), real, name + '_floats')};\n"
         f"FS_MAYBE_UNUSED static fs_real {name}(fs_real x1, fs_real x2) {{\n"
+        f"    fs_real x[2];\n"
+        f"    fs_real out[{n_out}];\n"
         f"    FS_SCRATCH fs_real work[{up}_WORK];\n"
         f"    FS_SCRATCH int32_t iwork[{up}_IWORK];\n" + smooth_arr
-        + f"    return fs_sys_eval2_s(x1, x2, {name}_ints, {name}_floats, work, iwork, "
+        + "    x[0] = x1;\n    x[1] = x2;\n"
+        f"    fs_sys_eval_s(x, out, {name}_ints, {name}_floats, work, iwork, "
         f"{'smooth' if sz.smooth else 'NULL'});\n"
+        f"    return out[0];\n"
         f"}}\n")
 
 

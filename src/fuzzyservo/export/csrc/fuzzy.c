@@ -1628,13 +1628,15 @@ FS_MAYBE_UNUSED static void fs_eval_partition(const fs_real *x, const int32_t *p
 /* ======================================================================================
  * one point (general.eval_point, eval_first2)
  *
- * Scratch: work[] of ints[H_WORK] + n_in + n_out reals (the Python layout, then the point and
- * the outputs of fs_sys_eval2), iwork[] of ints[H_IWORK] integers, and for a system with a
- * smooth output the smooth path's scratch: a separate array (the _s functions; NULL when the
- * system has no smooth output) or the end of work (fs_sys_eval, fs_sys_eval2).
- * fuzzyservo.export.fuzzy_c.scratch_sizes gives every size. The generated functions pass the
- * smooth scratch separately: with the tables constant, a compiler sees the smooth path's
- * offsets in a work array sized without it (never reached, but -Warray-bounds says so).
+ * Scratch (fuzzyservo.export.fuzzy_c.scratch_sizes gives every size):
+ * - fs_sys_eval_s: work[] of the evaluator's layout (ints[H_WORK] reals, or only the inputs
+ *   and the partition path's scratch when the system takes that path), iwork[] of
+ *   ints[H_IWORK] integers, and smooth[] for the smooth path (NULL when the system has no
+ *   smooth output). The generated functions call this one: with the tables constant a
+ *   compiler sees every offset, and the smooth path's in a work array sized without them
+ *   would be refused (-Warray-bounds) although no point takes it.
+ * - fs_sys_eval, fs_sys_eval2: one work array: ints[H_WORK] reals, then n_in + n_out (the
+ *   point and the outputs of fs_sys_eval2, as eval_first2 keeps them), then the smooth path's.
  */
 
 /* every output at the point x (n_in) into out (n_out); a NaN input gives NaN outputs */
@@ -1768,23 +1770,15 @@ FS_MAYBE_UNUSED static void fs_sys_eval(const fs_real *x, fs_real *out, const in
                   work + ints[FS_H_WORK] + ints[FS_H_NIN] + ints[FS_H_NOUT]);
 }
 
-/* the first output of a two-input system at (x1, x2): the controllers' call. `smooth` as in
- * fs_sys_eval_s; work holds ints[H_WORK] + 2 + n_out reals (the point and the outputs) */
-FS_MAYBE_UNUSED static fs_real fs_sys_eval2_s(fs_real x1, fs_real x2, const int32_t *ints,
-                                              const fs_real *floats, fs_real *work,
-                                              int32_t *iwork, fs_real *smooth) {
+/* the first output of a two-input system at (x1, x2): the controllers' call (eval_first2):
+ * the point and the outputs in work after the evaluator's layout, as the Python does */
+FS_MAYBE_UNUSED static fs_real fs_sys_eval2(fs_real x1, fs_real x2, const int32_t *ints,
+                                            const fs_real *floats, fs_real *work, int32_t *iwork) {
     fs_real *x = work + ints[FS_H_WORK], *out = x + 2;
     x[0] = x1;
     x[1] = x2;
-    fs_sys_eval_s(x, out, ints, floats, work, iwork, smooth);
+    fs_sys_eval(x, out, ints, floats, work, iwork);
     return out[0];
-}
-
-/* as fs_sys_eval2_s, with the smooth path's scratch at the end of work */
-FS_MAYBE_UNUSED static fs_real fs_sys_eval2(fs_real x1, fs_real x2, const int32_t *ints,
-                                            const fs_real *floats, fs_real *work, int32_t *iwork) {
-    return fs_sys_eval2_s(x1, x2, ints, floats, work, iwork,
-                          work + ints[FS_H_WORK] + 2 + ints[FS_H_NOUT]);
 }
 
 #endif /* FS_FUZZY_FRAGMENT */
