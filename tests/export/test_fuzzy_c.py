@@ -879,19 +879,19 @@ def test_float_random_piecewise_linear_and_table_systems(cf: CFuzzy,
     assert np.max(dev[ok], initial=0.0) <= FLOAT_TOL, (np.max(dev[ok]), x[ok].tolist())
 
 
-@pytest.mark.parametrize(("name", "system", "points"),
-                         [r for r in regression_systems() if "weak" not in r[0]],
-                         ids=[r[0] for r in regression_systems() if "weak" not in r[0]])
+@pytest.mark.parametrize(("name", "system", "points"), regression_systems(),
+                         ids=[r[0] for r in regression_systems()])
 def test_float_regressions(cf: CFuzzy, name: str, system: FuzzySystem,
                            points: list[list[float]]) -> None:
-    # the general evaluator's regression cases hold in float too (the weakly fired ones use
-    # strengths below float's range and are left out)
+    # the general evaluator's regression cases hold in float too
     comp = compile_system(system)
     x = f32(np.array(points))
     py = py_sys(comp, x)
     dev = float_deviation(cf.sys(x, comp.ints, comp.floats), py, out_scales(system))
-    bound = 2e-3 if system.defuzzifier in ("mom", "som", "lom") and "bell" in name else \
-        FLOAT_TOL
+    # the steep bell's maximum lies 0.0018 from its centre, where |t|^2.59 leaves the top flat
+    # to float precision over ~1e-4 of the range (measured 3.3e-5); elsewhere FLOAT_TOL
+    bound = 1e-4 if name.startswith("steep bell") and system.defuzzifier in (
+        "mom", "som", "lom") else FLOAT_TOL
     assert np.max(dev) <= bound, (np.max(dev), name)
 
 

@@ -440,7 +440,8 @@ FS_MAYBE_UNUSED static fs_real fs_mf(long code, const fs_real *f, long off, long
     case FS_SIG:
         return h * fs_sigmoid(x, f[off], f[off + 1]);
     case FS_DSIG:
-        return h * FS_FABS(fs_sigmoid(x, f[off], f[off + 1]) - fs_sigmoid(x, f[off + 3], f[off + 2]));
+        return h * FS_FABS(fs_sigmoid(x, f[off], f[off + 1]) -
+                           fs_sigmoid(x, f[off + 3], f[off + 2]));
     case FS_PSIG:
         return h * fs_sigmoid(x, f[off], f[off + 1]) * fs_sigmoid(x, f[off + 3], f[off + 2]);
     case FS_SMF:
@@ -834,7 +835,8 @@ FS_MAYBE_UNUSED static fs_real fs_defuzz_segments(long n_seg, const fs_real *su,
     for (s = 0; s < n_seg; ++s) {
         u = (su[s] - ref) / span;
         v = (sv[s] - ref) / span;
-        moment += (v - u) * (u * (FS_R(2.0) * gu[s] + gv[s]) + v * (gu[s] + FS_R(2.0) * gv[s])) / FS_R(6.0);
+        moment += (v - u) * (u * (FS_R(2.0) * gu[s] + gv[s]) + v * (gu[s] + FS_R(2.0) * gv[s])) /
+                  FS_R(6.0);
         area += FS_R(0.5) * (sv[s] - su[s]) * (gu[s] + gv[s]);
         gmax = fs_max(fs_max(gmax, gu[s]), gv[s]);
     }
@@ -1407,7 +1409,8 @@ FS_MAYBE_UNUSED static fs_real fs_smooth(const int32_t *ints, const fs_real *f, 
                         /* not a smooth maximum: exact only at a cut */
                         fs_real gx = fs_g(xm, &cx);
                         if (s <= 1 && gs[0] >= gx - FS_TOL_SMAX * gx) xr = a;
-                        else if (s >= FS_SCAN_CELLS - 1 && gs[FS_SCAN_CELLS] >= gx - FS_TOL_SMAX * gx)
+                        else if (s >= FS_SCAN_CELLS - 1 &&
+                                 gs[FS_SCAN_CELLS] >= gx - FS_TOL_SMAX * gx)
                             xr = b;
                     }
                     xm = xr;
