@@ -1153,3 +1153,19 @@ def test_mean_of_maxima_of_isolated_peaks_with_a_vertical_edge() -> None:
 
     s = from_mamdani(_system(defuzz="mean_of_maxima"))
     assert evaluate(s, [[2.0, -1.5]])[0, 0] == pytest.approx(0.45, abs=1e-15)
+
+
+def test_a_huge_input_on_an_unclipped_partition_is_the_last_region() -> None:
+    # the partition path converted (x - x0)/dx to an integer before comparing it with the
+    # number of vertices: for an unclipped input of 1e19 (beyond 2**63 steps) or inf that
+    # conversion is undefined behaviour (a crash was reported from the C port's review; here
+    # it happened to give NaN). Beyond the last vertex every x gives the last region's value.
+    base = from_mamdani(du_system())
+    e = dataclasses.replace(base.inputs[0], clip=False)
+    system = dataclasses.replace(base, inputs=(e, base.inputs[1]))
+    comp = general.compile_system(system)
+    assert comp.ints[general.H_PART] >= 0  # the partition path
+    far = [eval_first2(x, 0.5, comp.ints, comp.floats) for x in (2.0, 1e19, -2.0, -1e19)]
+    # no term reaches beyond the ends: no rule fires there (NaN), as at 2.0 and -2.0
+    assert np.array_equal(far[:2], far[:1] * 2, equal_nan=True)
+    assert np.array_equal(far[2:], far[2:3] * 2, equal_nan=True)

@@ -344,9 +344,16 @@ def eval_partition(x: FloatArray, pi: IntArray, pf: FloatArray, out: FloatArray,
         # region = number of vertices <= x (on a vertex: the interval right of it)
         if inv > 0.0:
             t = (xv - pf[xb_off]) * inv
-            lo = int(t) + 1 if t >= 0.0 else 0
-            if lo > n_bp:
+            # compare before converting: int() of t >= 2**63 (an unclipped input of 1e19,
+            # or inf) is undefined and crashed the process
+            if t >= n_bp:
                 lo = n_bp
+            elif t >= 0.0:
+                lo = int(t) + 1
+                if lo > n_bp:
+                    lo = n_bp
+            else:
+                lo = 0
             # t rounded near a vertex: settle on the exact comparison
             while lo > 0 and pf[xb_off + lo - 1] > xv:
                 lo -= 1
