@@ -119,6 +119,11 @@ def test_a_new_kind_reaches_every_front_end(with_pd: ControllerKind, tmp_path: P
                 if line.startswith("itae"))
     assert itae == pytest.approx(rec.metrics["itae"], rel=5e-6)  # 6 printed digits
     assert default_bounds("pd").names == ("kp", "kd")
+    # export by name: C code whose set_gains takes the kind's gains (kp, kd)
+    assert main(["export", "c", "--controller", "pd", "--gains", "kp=5,kd=0.01", "--out",
+                 str(tmp_path / "pd_c")]) == 0
+    header = (tmp_path / "pd_c" / "pd.h").read_text()
+    assert "#define PD_N_GAINS 2" in header and "kd = 0.01 s/m" in header
 
 
 def test_tuner_searches_what_the_registry_says() -> None:

@@ -22,7 +22,7 @@ import numpy as np
 
 from .. import __version__
 from .._typing import FloatArray
-from ..control import FuzzyPIController, PIDController
+from ..control import KIND_FUZZY_PI, KIND_PID
 from ..errors import ParameterError
 from ..registry import ControllerKind
 
@@ -250,7 +250,7 @@ static fs_real fs_fuzzy_pi_step(const fs_real *p, fs_real *s, fs_real r, fs_real
 """
 
 
-def _fuzzy_systems_code(ctl: FuzzyPIController, real: Real) -> tuple[str, str]:
+def _fuzzy_systems_code(ctl: Any, real: Real) -> tuple[str, str]:
     """Definitions of the systems (after the evaluators' code) and the lines of the step
     that evaluate them."""
     from .fuzzy_c import emit_pair, emit_system, fragment
@@ -283,7 +283,9 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
     gains : mapping of str to float
         The kind's checked gains (:meth:`ControllerKind.check_gains`) [their units].
     controller : PIDController or FuzzyPIController
-        The controller built from them (its ``pack()`` is compiled in).
+        The controller built from them (its ``pack()`` is compiled in); its packed ``kind``
+        (the branch of ``fuzzyservo.control.controller_step``) selects the law, so the
+        exporter names no controller class (the registry builds them).
     name : str
         Prefix of the public identifiers (:func:`check_c_name`).
     real : {"double", "float"}
@@ -299,7 +301,8 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
         A controller class without C code, a bad name, or tables C cannot hold.
     """
     check_c_name(name)
-    if not isinstance(controller, PIDController | FuzzyPIController):
+    law_kind = getattr(controller, "kind", None)
+    if law_kind not in (KIND_PID, KIND_FUZZY_PI):
         raise ParameterError(
             f"controller {kind.name} ({type(controller).__name__}) has no C code; the "
             f"exporter expresses the PID family and the fuzzy PIs")
@@ -322,7 +325,7 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
         else:
             class_gains.append(c_literal(merged[g]))
 
-    if isinstance(controller, PIDController):
+    if law_kind == KIND_PID:
         law = "PID"
         tables: list[Any] = []
         sys_defs = ""
@@ -407,7 +410,7 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
 
 
 def _options(controller: Any) -> str:
-    if isinstance(controller, PIDController):
+    if controller.kind == KIND_PID:
         tt = ("default" if controller.tracking_time is None
               else f"{controller.tracking_time!r} s")
         return (f"anti_windup = {controller.anti_windup}, tracking_time = {tt}, u in "
