@@ -423,6 +423,11 @@ def _options(controller: Any) -> str:
 def _header(name: str, upper: str, real: Real, info: Sequence[str], gain_names: Sequence[str],
             values: Sequence[float], units: Sequence[str], ts: float, n_p: int,
             self_tuning: bool, law: str) -> str:
+    if law == "PID":
+        change = "the proportional and derivative terms change at once"
+    else:
+        change = "incremental: the command continues from the last one"
+    allowed = "finite and >= 0" + ("; n: > 0 or infinity" if "n" in gain_names else "")
     gains_doc = "\n".join(f" *   g[{i}] = {g} [{u}] (exported: {v!r})"
                           for i, (g, v, u) in enumerate(zip(gain_names, values, units,
                                                             strict=True)))
@@ -470,10 +475,11 @@ void {name}_reset({name}_t *c, {name}_real y0, {name}_real u0);
  * the next sample. */
 {name}_real {name}_step({name}_t *c, {name}_real r, {name}_real y);
 
-/* Replace the gains, keeping the state (bumpless only if the integrator is compatible):
+/* Replace the gains, keeping the state; the next sample uses them
+ * ({change}):
 {gains_doc}
- * Returns 0, or i + 1 when g[i] is out of range (finite and >= 0; n: > 0 or infinity),
- * leaving the gains as they were. */
+ * Returns 0, or i + 1 when g[i] is out of range ({allowed}), leaving the gains as they
+ * were. */
 int {name}_set_gains({name}_t *c, const double g[{upper}_N_GAINS]);
 
 /* Name of gain i (0 <= i < {upper}_N_GAINS), or NULL. */
