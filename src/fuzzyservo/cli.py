@@ -201,7 +201,13 @@ def _run(argv: Sequence[str] | None) -> int:
     except MemoryError:
         return _error("out of memory; ask for less: a shorter or coarser run, a smaller "
                       "grid or population")
-    except Exception as exc:  # a library wrapped one of our errors
+    except Exception as exc:  # a library wrapped one of our errors, or an interruption
+        # Ctrl-C inside a class body being created (a module imported lazily, e.g.
+        # matplotlib's) reaches us as a RuntimeError from __set_name__ with the
+        # KeyboardInterrupt as its cause: it is still an interruption
+        stop = next((e for e in _chain(exc) if isinstance(e, KeyboardInterrupt)), None)
+        if stop is not None:
+            raise stop from None
         ours = _ours(exc)
         if ours is None:
             raise

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from fuzzyservo.cli import main
 from tests.helpers import start_fuzzyservo, wait_for_temporary
 
 FUZZYSERVO = [sys.executable, "-m", "fuzzyservo"]
@@ -245,3 +246,23 @@ def test_ctrl_c_just_after_the_work_is_done_does_not_kill_the_process(tmp_path: 
         assert "Traceback" not in err
         (tmp_path / "keep.csv").unlink()
     assert set(codes) <= {0, 130}, codes
+
+
+def test_an_interruption_wrapped_by_a_library_is_still_one_line(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    # Ctrl-C landing in a class body during a lazy import (matplotlib's _AxesBase) reached
+    # the CLI as "RuntimeError: Error calling __set_name__ ..." caused by the
+    # KeyboardInterrupt, and printed a traceback (seen in the random-interrupt test of
+    # reproduce); it ends like any Ctrl-C: one line, status 130
+    from fuzzyservo.commands import linearize
+
+    def wrapped(args: object) -> int:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise RuntimeError("Error calling __set_name__ on '_axis_method_wrapper'") from exc
+
+    monkeypatch.setattr(linearize, "run", wrapped)
+    assert main(["linearize"]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Traceback" not in err[0]
