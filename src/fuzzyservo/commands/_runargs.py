@@ -28,6 +28,7 @@ __all__ = [
     "add_plant_choice",
     "controller_from_args",
     "delay_from_args",
+    "options_from_args",
     "parse_gains_pairs",
     "simulated_time_progress",
     "systems_from_args",
@@ -260,17 +261,31 @@ class ControllerChoice:
     def build(self, args: argparse.Namespace) -> Any:
         """The controller, with the options given on the command line."""
         kind = controller_kind(self.kind)
-        options = {}
-        for key, flag in OPTION_FLAGS.items():
-            value = getattr(args, key, None)
-            if value is None:
-                continue
-            if key not in kind.options:
-                raise ParameterError(f"{flag} does not apply to controller {self.kind} "
-                                     f"({kind.title})")
-            options[key] = value
+        options = options_from_args(args, self.kind)
         self.systems = systems_from_args(args, self.kind)
         return kind.build(self.gains, dt=self.ts, options=options, systems=self.systems)
+
+
+def options_from_args(args: argparse.Namespace, kind_name: str) -> dict[str, Any]:
+    """The controller options given on the command line (:data:`OPTION_FLAGS`) for the
+    registered controller ``kind_name``.
+
+    Raises
+    ------
+    ParameterError
+        An option the controller does not take.
+    """
+    kind = controller_kind(kind_name)
+    options = {}
+    for key, flag in OPTION_FLAGS.items():
+        value = getattr(args, key, None)
+        if value is None:
+            continue
+        if key not in kind.options:
+            raise ParameterError(f"{flag} does not apply to controller {kind_name} "
+                                 f"({kind.title})")
+        options[key] = value
+    return options
 
 
 def controller_from_args(args: argparse.Namespace, *, default_ts: float = 1e-3

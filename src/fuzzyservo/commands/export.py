@@ -16,7 +16,7 @@ from ..export.targets import (
     export_servo_fmu,
     generate_c,
 )
-from ..registry import DEFAULT_SUBSTEP, build_plant, controller_kind
+from ..registry import DEFAULT_SUBSTEP, build_plant
 from ._plantargs import add_plant_arguments, params_from_args
 from ._runargs import (
     OPTION_FLAGS,
@@ -25,6 +25,7 @@ from ._runargs import (
     add_plant_choice,
     controller_from_args,
     delay_from_args,
+    options_from_args,
     systems_from_args,
     systems_record,
 )
@@ -95,16 +96,7 @@ def add_plant_choice_optional(p: argparse.ArgumentParser) -> None:
 
 def _generate(args: argparse.Namespace) -> Any:
     choice = controller_from_args(args)
-    kind = controller_kind(choice.kind)
-    options = {}
-    for key, flag in OPTION_FLAGS.items():
-        value = getattr(args, key, None)
-        if value is None:
-            continue
-        if key not in kind.options:
-            raise ParameterError(f"{flag} does not apply to controller {choice.kind} "
-                                 f"({kind.title})")
-        options[key] = value
+    options = options_from_args(args, choice.kind)
     systems = systems_from_args(args, choice.kind)
     return generate_c(choice.kind, choice.gains, ts=choice.ts, systems=systems,
                       options=options, real=args.real, name=args.name,

@@ -12,11 +12,10 @@ for a target or an FMU that tunes them. docs/export.md gives the API and the gua
 from __future__ import annotations
 
 import hashlib
-import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
@@ -25,10 +24,10 @@ from .._typing import FloatArray
 from ..control import KIND_FUZZY_PI, KIND_PID
 from ..errors import ParameterError
 from ..registry import ControllerKind
+from ._c import Real, c_array, c_comment, c_literal
 
-__all__ = ["CController", "Real", "c_array", "c_literal", "check_c_name", "emit_controller"]
+__all__ = ["CController", "check_c_name", "emit_controller"]
 
-Real = Literal["double", "float"]
 
 _C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto if "
@@ -42,32 +41,20 @@ def check_c_name(name: str) -> str:
     Raises
     ------
     ParameterError
-        Not a C identifier of at most 31 characters, a C keyword, or starting with ``fs_``
-        (the prefix of the generated code's internal functions).
+        Not a C identifier of at most 31 characters starting with a letter, a C keyword, or
+        one of the generated code's own prefixes (``fs``, ``fsm``, ``fmi``). (The instance
+        type is ``NAME_ctl``, not ``NAME_t``: C and POSIX reserve the ``_t`` suffix, and
+        ``pid_t`` is POSIX's.)
     """
-    if (not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,30}", name) or name in _C_KEYWORDS
-            or name.lower().startswith(("fs_", "fmi"))):
+    low = name.lower() if isinstance(name, str) else ""
+    if (not isinstance(name, str) or not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,30}", name)
+            or name in _C_KEYWORDS
+            or low in ("fs", "fsm") or low.startswith(("fs_", "fsm_", "fmi"))):
         raise ParameterError(
-            f"--name must be a C identifier of at most 31 letters, digits and _, not a C "
-            f"keyword and not starting with fs_ or fmi, got {name!r}")
+            f"--name must be a C identifier of at most 31 letters, digits and _ starting with "
+            f"a letter, not a C keyword, and not fs, fsm or starting with fs_, fsm_ or fmi, "
+            f"got {name!r}")
     return name
-
-
-def c_literal(value: float, real: Real = "double") -> str:
-    """``value`` as an exact C99 literal of type ``real`` (hexadecimal; ``HUGE_VAL`` for
-    infinity; float: rounded to the nearest float first, with an ``f`` suffix)."""
-    v = float(value)
-    if math.isnan(v):
-        raise ParameterError("a NaN cannot be compiled into the C code")
-    if real == "float":
-        v = float(np.float32(v))
-    if math.isinf(v):
-        body = "HUGE_VALF" if real == "float" else "HUGE_VAL"
-        return f"(-{body})" if v < 0 else body
-    text = v.hex()
-    if real == "float":
-        text += "f"
-    return f"({text})" if v < 0 else text
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,7 +64,7 @@ class CController:
     Attributes
     ----------
     name : str
-        Prefix of every public identifier (``NAME_t``, ``NAME_init``, ``NAME_step``, ...).
+        Prefix of every public identifier (``NAME_ctl``, ``NAME_init``, ``NAME_step``, ...).
     kind : str
         The registry's controller name.
     header, source : str
@@ -123,20 +110,9 @@ def _tables_digest(tables: Sequence[Any]) -> str:
     return h.hexdigest()
 
 
-def c_array(ctype: str, name: str, items: Sequence[str], per_line: int = 3) -> str:
-    """A ``static const`` C array of the literal ``items``, ``per_line`` to a line."""
-    rows = [", ".join(items[i:i + per_line]) for i in range(0, len(items), per_line)]
-    body = ",\n    ".join(rows)
-    return f"static const {ctype} {name}[{len(items)}] = {{\n    {body}\n}};"
-
-
 def _array(name: str, values: FloatArray, real: Real) -> str:
-    return c_array("fs_real", name, [c_literal(v, real) for v in values])
-
-
-def _comment(lines: Sequence[str]) -> str:
-    body = "\n".join(f" * {line}".rstrip() for line in lines)
-    return f"/*\n{body}\n */"
+    return c_array("fs_real", name, [c_literal(v, real, f"{name}[{i}]")
+                                     for i, v in enumerate(values)])
 
 
 # --- PID family ---------------------------------------------------------------------------
@@ -325,6 +301,11 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
         else:
             class_gains.append(c_literal(merged[g]))
 
+    # the registry's check of each gain (GainSpec.check): finite and >= 0, or > 0 / inf
+    checks = [f"    if (!(g[{i}] > 0.0)) {{\n        return {i + 1};\n    }}"
+              if kind.gain(g).allow_inf else
+              f"    if (!(g[{i}] >= 0.0 && g[{i}] <= DBL_MAX)) {{\n        return {i + 1};\n    }}"
+              for i, g in enumerate(gain_names)]
     if law_kind == KIND_PID:
         law = "PID"
         tables: list[Any] = []
@@ -340,13 +321,6 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
                      "    c->s[2] = (c->p[5] - 1) * y0;\n"
                      "    c->s[3] = 0;\n"
                      "    c->s[4] = NAN;")
-        checks = []
-        for i, g in enumerate(gain_names):
-            if kind.gain(g).allow_inf:
-                checks.append(f"    if (!(g[{i}] > 0.0)) {{\n        return {i + 1};\n    }}")
-            else:
-                checks.append(f"    if (!(g[{i}] >= 0.0 && g[{i}] <= DBL_MAX)) {{\n"
-                              f"        return {i + 1};\n    }}")
         self_tuning = False
     else:
         law = "self-tuning fuzzy PI" if controller.self_tuning else "fuzzy PI"
@@ -362,8 +336,6 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
         step_call = "fs_fuzzy_pi_step(c->p, c->s, r, y)"
         init_body = ("    c->s[0] = u0;\n    c->s[1] = 0;\n    c->s[2] = 0;\n    c->s[3] = 0;\n"
                      "    c->s[4] = 1;\n    (void)y0;")
-        checks = [f"    if (!(g[{i}] >= 0.0 && g[{i}] <= DBL_MAX)) {{\n        return {i + 1};\n"
-                  f"    }}" for i in range(len(gain_names))]
     digest = _tables_digest(tables) if tables else ""
 
     options = _options(controller)
@@ -388,7 +360,7 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
             info.append("  the paper's (Aly et al. 2012, Fig. 3)")
     info += [
         "",
-        "C99, standard library only (math.h); no heap, no global state: each NAME_t is one",
+        "C99, standard library only (math.h); no heap, no global state: each NAME_ctl is one",
         "instance, and instances run side by side. Compile with IEEE semantics (no",
         "-ffast-math; -ffp-contract=off, which -std=c99 implies with gcc) for results equal to",
         "the Python controller's; link with -lm.",
@@ -435,9 +407,9 @@ def _header(name: str, upper: str, real: Real, info: Sequence[str], gain_names: 
     if self_tuning:
         alpha = f"""
 /* The gain-updating factor alpha of the last sample [-] (1 before the first). */
-{name}_real {name}_alpha(const {name}_t *c);
+{name}_real {name}_alpha(const {name}_ctl *c);
 """
-    return f"""{_comment(info)}
+    return f"""{c_comment(info)}
 #ifndef {upper}_H
 #define {upper}_H
 
@@ -461,26 +433,26 @@ typedef {real} {name}_real;
 typedef struct {{
     {name}_real p[{n_p}];
     {name}_real s[5];
-}} {name}_t;
+}} {name}_ctl;
 
 /* Start at rest, bumpless, as the simulator starts: the exported gains, measurement y0 [m]
  * with the reference equal to it, holding command u0 [-]; the first {name}_step with
  * r = y = y0 returns u0. */
-void {name}_init({name}_t *c, {name}_real y0, {name}_real u0);
+void {name}_init({name}_ctl *c, {name}_real y0, {name}_real u0);
 
 /* The same start with the gains the instance has now (after {name}_set_gains). */
-void {name}_reset({name}_t *c, {name}_real y0, {name}_real u0);
+void {name}_reset({name}_ctl *c, {name}_real y0, {name}_real u0);
 
 /* One sample: reference r [m], measurement y [m] -> command u [-], limited; hold it until
  * the next sample. */
-{name}_real {name}_step({name}_t *c, {name}_real r, {name}_real y);
+{name}_real {name}_step({name}_ctl *c, {name}_real r, {name}_real y);
 
 /* Replace the gains, keeping the state; the next sample uses them
  * ({change}):
 {gains_doc}
  * Returns 0, or i + 1 when g[i] is out of range ({allowed}), leaving the gains as they
  * were. */
-int {name}_set_gains({name}_t *c, const double g[{upper}_N_GAINS]);
+int {name}_set_gains({name}_ctl *c, const double g[{upper}_N_GAINS]);
 
 /* Name of gain i (0 <= i < {upper}_N_GAINS), or NULL. */
 const char *{name}_gain_name(int i);
@@ -505,12 +477,12 @@ def _source(name: str, upper: str, real: Real, info: Sequence[str], sys_defs: st
     alpha = ""
     if self_tuning:
         alpha = f"""
-{name}_real {name}_alpha(const {name}_t *c)
+{name}_real {name}_alpha(const {name}_ctl *c)
 {{
     return c->s[4];
 }}
 """
-    return f"""{_comment(info)}
+    return f"""{c_comment(info)}
 #include "{name}.h"
 
 #if !defined({upper}_CODE_ID) || {upper}_CODE_ID != 0x@STAMP@UL
@@ -532,23 +504,23 @@ typedef {name}_real fs_real;
 {consts[0]}
 {consts[1]}
 
-void {name}_init({name}_t *c, {name}_real y0, {name}_real u0)
+void {name}_init({name}_ctl *c, {name}_real y0, {name}_real u0)
 {{
     memcpy(c->p, fs_p0, sizeof c->p);
     {name}_reset(c, y0, u0);
 }}
 
-void {name}_reset({name}_t *c, {name}_real y0, {name}_real u0)
+void {name}_reset({name}_ctl *c, {name}_real y0, {name}_real u0)
 {{
 {init_body}
 }}
 
-{name}_real {name}_step({name}_t *c, {name}_real r, {name}_real y)
+{name}_real {name}_step({name}_ctl *c, {name}_real r, {name}_real y)
 {{
     return {step_call};
 }}
 
-int {name}_set_gains({name}_t *c, const double g[{upper}_N_GAINS])
+int {name}_set_gains({name}_ctl *c, const double g[{upper}_N_GAINS])
 {{
     double cg[{len(class_gains)}];
 {chr(10).join(checks)}

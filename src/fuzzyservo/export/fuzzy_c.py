@@ -24,10 +24,9 @@ tolerances (the fragment's comments give each).
 
 from __future__ import annotations
 
-import math
 import re
 from importlib import resources
-from typing import Literal, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -35,10 +34,10 @@ from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
 from ..fuzzy import general as _g
 from ..fuzzy.kernels import LIMS_SIZE
+from ._c import Real, c_literal
 
 __all__ = ["Scratch", "emit_pair", "emit_system", "fragment", "scratch_sizes"]
 
-Real = Literal["double", "float"]
 
 _INT32_MIN = -(2**31)
 _INT32_MAX = 2**31 - 1
@@ -89,22 +88,8 @@ def _check_name(name: str, extra: tuple[str, ...] = ()) -> None:
 
 
 def _real_literal(v: float, real: Real, where: str) -> str:
-    """``v`` as an exact C literal: a C99 hexadecimal double, or for float the nearest float
-    (hexadecimal, ``f`` suffix); NAN and INFINITY from <math.h>."""
-    if math.isnan(v):
-        return "NAN"
-    if math.isinf(v):
-        return "INFINITY" if v > 0 else "-INFINITY"
-    if real == "double":
-        return float(v).hex()
-    f32 = np.float32(v) if abs(v) <= float(np.finfo(np.float32).max) else np.float32(np.inf)
-    if not np.isfinite(f32):
-        raise ParameterError(f"{where}: {v!r} is beyond the largest float (3.4e38); export in "
-                             f"double")
-    if f32 == 0.0 and v != 0.0:
-        raise ParameterError(f"{where}: {v!r} is not zero but rounds to 0 in float; export in "
-                             f"double")
-    return float(f32).hex() + "f"
+    """``v`` as an exact C literal (:func:`fuzzyservo.export._c.c_literal`)."""
+    return c_literal(v, real, where)
 
 
 def _real_array(values: FloatArray, real: Real, where: str) -> str:

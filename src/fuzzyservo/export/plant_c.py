@@ -33,7 +33,14 @@ from .._typing import FloatArray
 from ..errors import ParameterError
 from ..plant.nonlinear import N_STATE, P_L, P_RES, STATE_NAMES
 from ..plant.zoh import check_delay, split_delay
-from ..sim.closed_loop import MAX_RK4_STEPS, MAX_SAMPLES, LinearPlant, NonlinearPlant
+from ..sim.closed_loop import (
+    MAX_RK4_STEPS,
+    MAX_SAMPLES,
+    LinearPlant,
+    NonlinearPlant,
+    substep_split,
+)
+from ._c import c_array, c_comment, c_literal
 
 __all__ = ["ServoC", "emit_servo", "plant_fragment", "substep_split"]
 
@@ -134,61 +141,23 @@ class ServoC:
     n_samples_max: int | None
 
 
-def substep_split(n_sub: int, f: float, ts: float) -> tuple[int, int]:
-    """RK4 substeps before and after the command switch at t_k + f: ``(n1, n0)``.
-
-    The rule of :func:`fuzzyservo.sim.closed_loop.run_nonlinear`, written again because the
-    C code takes the numbers as constants: n1 = round(n_sub f / ts) (half to even, as Python
-    and numba round), at least 1 and less than n_sub when n_sub > 1; n0 = n_sub - n1, at
-    least 1.
-
-    Parameters
-    ----------
-    n_sub : int
-        RK4 substeps per sample [-].
-    f : float
-        Fractional delay, 0 <= f < ts [s].
-    ts : float
-        Sample time [s].
-
-    Returns
-    -------
-    tuple of int
-        (n1, n0) [-]; n1 = 0 when f = 0.
-    """
-    n1 = 0
-    if f > 0.0:
-        n1 = max(1, int(round(n_sub * f / ts)))
-        if n1 >= n_sub:
-            n1 = n_sub - 1 if n_sub > 1 else 1
-    n0 = max(1, n_sub - n1)
-    return n1, n0
-
-
 def _hex(value: float) -> str:
-    """``value`` as an exact C99 hexadecimal double literal."""
+    """``value`` as an exact C99 hexadecimal double literal (finite only)."""
     v = float(value)
     if not math.isfinite(v):
         raise ParameterError(f"a non-finite number ({v!r}) cannot be compiled into the plant")
-    return v.hex()
+    return c_literal(v)
 
 
 def _table(name: str, values: FloatArray) -> str:
-    vals = [_hex(v) for v in np.asarray(values, dtype=np.float64).ravel()]
-    lines = []
-    for a in range(0, len(vals), 3):
-        lines.append("    " + ", ".join(vals[a:a + 3]))
-    return f"static const double {name}[{len(vals)}] = {{\n" + ",\n".join(lines) + "\n};"
+    return c_array("double", name, [_hex(v) for v in np.asarray(values, dtype=np.float64)
+                                    .ravel()])
 
 
 def _output_info(names: tuple[str, ...]) -> tuple[tuple[str, ...], tuple[str, ...]]:
     units = tuple(_OUTPUT_INFO.get(n, ("", f"state {n}"))[0] for n in names)
     desc = tuple(_OUTPUT_INFO.get(n, ("", f"state {n}"))[1] for n in names)
     return units, desc
-
-
-def _comment(lines: list[str]) -> str:
-    return "/*\n" + "\n".join(f" * {line}".rstrip() for line in lines) + "\n */"
 
 
 _API = """\
@@ -308,7 +277,7 @@ def emit_servo(plant: LinearPlant | NonlinearPlant, *, ts: float, delay: float,
                 raise ParameterError(
                     f"substep {plant.substep!r} s at ts = {ts!r} s gives {n_sub} RK4 steps per "
                     f"sample; at most {MAX_RK4_STEPS:.0e} are allowed")
-        n1, n0 = substep_split(n_sub, f, ts)
+        n1, n0 = (int(v) for v in substep_split(n_sub, f, ts))
         kind: Literal["linear", "nonlinear"] = "nonlinear"
         info += ["nonlinear two-chamber model (run_nonlinear): classical RK4, step bound "
                  f"{plant.substep!r} s,",
@@ -383,7 +352,7 @@ def emit_servo(plant: LinearPlant | NonlinearPlant, *, ts: float, delay: float,
         stroke = plant.stroke
     api = _fill(_API, INIT=init, U0=_hex(plant.u0), SAMPLE=sample, Y=y_expr,
                 STATE=state_expr, TS=_hex(ts))
-    source = "\n\n".join([_comment(info), *consts, api])
+    source = "\n\n".join([c_comment(info), *consts, api])
     return ServoC(source=source, kind=kind, outputs=names, units=units, descriptions=desc,
                   start=(float(y_start), *(float(v) for v in x_start)), u0=float(plant.u0),
                   ts=ts, delay=delay, whole_samples=d, fraction=f, ring=ring, n_sub=n_sub,

@@ -20,7 +20,8 @@ from typing import Any
 from .._io import check_output_path, write_bytes_atomic, write_text_atomic
 from ..errors import InputError
 from ..registry import controller_kind
-from .controller_c import CController, Real, check_c_name, emit_controller
+from ._c import Real
+from .controller_c import CController, check_c_name, emit_controller
 from .fmu import controller_fmu, servo_fmu
 
 __all__ = [

@@ -66,6 +66,7 @@ __all__ = [
     "plant_limits",
     "ring_size",
     "simulate",
+    "substep_split",
     "time_grid",
 ]
 
@@ -368,6 +369,21 @@ def run_linear(
 
 
 @numba.njit(cache=True, nogil=True)
+def substep_split(n_sub: int, f: float, ts: float) -> tuple[int, int]:
+    """RK4 substeps (n1, n0) before and after the delayed command's switch at t_k + ``f``
+    [s] inside a sample of ``ts`` [s] with ``n_sub`` substeps: n1 = round(n_sub f / ts)
+    (half to even), at least 1 and below n_sub when n_sub > 1; n0 = n_sub - n1, at least 1;
+    n1 = 0 when f = 0. The one rule of the loops and of the exported servo's C."""
+    n1 = 0
+    if f > 0.0:
+        n1 = max(1, int(round(n_sub * f / ts)))
+        if n1 >= n_sub:
+            n1 = n_sub - 1 if n_sub > 1 else 1
+    n0 = max(1, n_sub - n1)
+    return n1, n0
+
+
+@numba.njit(cache=True, nogil=True)
 def run_nonlinear(
     kind: int, cp: FloatArray, cs: FloatArray,
     du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
@@ -388,12 +404,7 @@ def run_nonlinear(
     has_force = force.shape[0] > 0
     d = min(d, r.shape[0])  # a command delayed past the run never arrives
     res = p[P_RES]
-    n1 = 0
-    if f > 0.0:
-        n1 = max(1, int(round(n_sub * f / ts)))
-        if n1 >= n_sub:
-            n1 = n_sub - 1 if n_sub > 1 else 1
-    n0 = max(1, n_sub - n1)
+    n1, n0 = substep_split(n_sub, f, ts)
     nx = x.shape[0]
     last = r.shape[0] - 1
     w = 0
