@@ -19,6 +19,8 @@ enum { FSM_INSTANTIATED, FSM_INIT, FSM_STEP, FSM_TERMINATED, FSM_ERROR };
  *   static int  fsm_get(const struct fsm_model *m, unsigned vr, double *v);
  *   static int  fsm_initialize(struct fsm_model *m, double t0, char *msg);
  *   static int  fsm_do_step(struct fsm_model *m, double t, double h, char *msg);
+ *   #define FSM_TS ts                  the sample time [s] (steps start where the last ended,
+ *                                      within 1e-6 ts)
  *
  * Each returns 0 on success; otherwise it writes a one-line reason into msg (FSM_MSG bytes)
  * and the wrapper logs it and returns fmi2Error. Phases: 0 instantiated, 1 initialisation
@@ -59,6 +61,7 @@ static void fsm_log(fsm_instance *inst, fmi2Status status, const char *category,
 static fmi2Status fsm_fail(fsm_instance *inst, const char *msg)
 {
     fsm_log(inst, fmi2Error, "logStatusError", msg);
+    inst->now.phase = FSM_ERROR; /* FMI 2.0: after fmi2Error only reset or free */
     return fmi2Error;
 }
 
@@ -69,12 +72,9 @@ static int fsm_phase_ok(fsm_instance *inst, const char *fn, unsigned allowed)
         return 1;
     }
     sprintf(msg, "%.40s is not allowed in this state (%d)", fn, inst->now.phase);
-    fsm_log(inst, fmi2Error, "logStatusError", msg);
+    fsm_fail(inst, msg);
     return 0;
 }
-
-#define FSM_ANY ((1u << FSM_INSTANTIATED) | (1u << FSM_INIT) | (1u << FSM_STEP) \
-                 | (1u << FSM_TERMINATED) | (1u << FSM_ERROR))
 
 FMI2_Export const char *fmi2GetTypesPlatform(void)
 {
@@ -203,8 +203,7 @@ FMI2_Export fmi2Status fmi2ExitInitializationMode(fmi2Component c)
 FMI2_Export fmi2Status fmi2Terminate(fmi2Component c)
 {
     fsm_instance *inst = (fsm_instance *)c;
-    if (inst == NULL || !fsm_phase_ok(inst, "fmi2Terminate", (1u << FSM_STEP)
-                                      | (1u << FSM_ERROR) | (1u << FSM_INIT))) {
+    if (inst == NULL || !fsm_phase_ok(inst, "fmi2Terminate", 1u << FSM_STEP)) {
         return fmi2Error;
     }
     inst->now.phase = FSM_TERMINATED;
@@ -230,7 +229,8 @@ FMI2_Export fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[
     fsm_instance *inst = (fsm_instance *)c;
     size_t i;
     char msg[FSM_MSG];
-    if (inst == NULL || !fsm_phase_ok(inst, "fmi2GetReal", FSM_ANY)) {
+    if (inst == NULL || !fsm_phase_ok(inst, "fmi2GetReal", (1u << FSM_INIT) | (1u << FSM_STEP)
+                                      | (1u << FSM_TERMINATED) | (1u << FSM_ERROR))) {
         return fmi2Error;
     }
     if (nvr > 0 && (vr == NULL || value == NULL)) {
@@ -408,12 +408,16 @@ FMI2_Export fmi2Status fmi2DeSerializeFMUstate(fmi2Component c,
                                                fmi2FMUstate *FMUstate)
 {
     fsm_instance *inst = (fsm_instance *)c;
-    fsm_snapshot *snap;
+    fsm_snapshot *snap, check;
     if (inst == NULL || serializedState == NULL || FMUstate == NULL) {
         return fmi2Error;
     }
     if (size != sizeof(fsm_snapshot) + sizeof(FSM_GUID)
         || memcmp(serializedState, FSM_GUID, sizeof(FSM_GUID)) != 0) {
+        return fsm_fail(inst, "fmi2DeSerializeFMUstate: not a state of this FMU");
+    }
+    memcpy(&check, serializedState + sizeof(FSM_GUID), sizeof(fsm_snapshot));
+    if (check.phase < FSM_INSTANTIATED || check.phase > FSM_ERROR || !isfinite(check.time)) {
         return fsm_fail(inst, "fmi2DeSerializeFMUstate: not a state of this FMU");
     }
     snap = (fsm_snapshot *)*FMUstate;
@@ -423,7 +427,7 @@ FMI2_Export fmi2Status fmi2DeSerializeFMUstate(fmi2Component c,
             return fsm_fail(inst, "fmi2DeSerializeFMUstate: out of memory");
         }
     }
-    memcpy(snap, serializedState + sizeof(FSM_GUID), sizeof(fsm_snapshot));
+    *snap = check;
     *FMUstate = snap;
     return fmi2OK;
 }
@@ -485,8 +489,16 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunication
     if (inst == NULL || !fsm_phase_ok(inst, "fmi2DoStep", 1u << FSM_STEP)) {
         return fmi2Error;
     }
-    if (!(communicationStepSize >= 0.0)) {
-        return fsm_fail(inst, "fmi2DoStep: the communication step must be >= 0");
+    if (!isfinite(currentCommunicationPoint) || !isfinite(communicationStepSize)
+        || !(communicationStepSize >= 0.0)) {
+        sprintf(msg, "fmi2DoStep: the time (%g s) and the step (%g s) must be finite, the "
+                "step >= 0", currentCommunicationPoint, communicationStepSize);
+        return fsm_fail(inst, msg);
+    }
+    if (fabs(currentCommunicationPoint - inst->now.time) > 1e-6 * FSM_TS) {
+        sprintf(msg, "fmi2DoStep: a step must start where the last one ended, at t = %.17g s, "
+                "not at %.17g s", inst->now.time, currentCommunicationPoint);
+        return fsm_fail(inst, msg);
     }
     msg[0] = '\0';
     if (fsm_do_step(&inst->now.m, currentCommunicationPoint, communicationStepSize, msg)
