@@ -62,7 +62,7 @@ int main(int argc, char **argv)
     FILE *f = fopen(argv[1], "r");
     int passes = atoi(argv[2]), repeats = atoi(argv[3]), n = 0, i, p, rep;
     double y0, u0, *r, *y, best = 1e300, sink = 0.0;
-    NAME_t c;
+    NAME_ctl c;
     (void)argc;
     if (f == NULL || fscanf(f, "%d %lf %lf", &n, &y0, &u0) != 3) {
         return 3;

@@ -17,8 +17,9 @@ __all__ = ["SANITIZE", "STRICT", "compile_executable", "compile_objects", "compi
 
 #: The flags generated code must compile cleanly under (docs/export.md).
 STRICT = ("-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic")
-#: AddressSanitizer and UndefinedBehaviorSanitizer, any report fatal.
-SANITIZE = ("-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all")
+#: AddressSanitizer and UndefinedBehaviorSanitizer, any report fatal, at the -O2 the
+#: acceptance names.
+SANITIZE = ("-O2", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all")
 
 
 def gcc() -> str:

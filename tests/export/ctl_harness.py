@@ -15,17 +15,9 @@ from typing import Any
 import numpy as np
 
 from fuzzyservo.export.controller_c import CController
+from tests.export.cbuild import SANITIZE, STRICT, gcc
 
-STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
-
-
-def gcc() -> str:
-    """The compiler of the tests: gcc, which must exist (the tests fail without it)."""
-    import shutil
-
-    path = shutil.which("gcc")
-    assert path is not None, "gcc is needed by the export tests (make test installs it)"
-    return path
+__all__ = ["SANITIZE", "STRICT", "CStep", "build", "gcc", "write"]
 
 
 def write(cc: CController, folder: Path) -> Path:

@@ -33,7 +33,7 @@ from fuzzyservo.registry import (
     default_systems,
 )
 from fuzzyservo.sim import simulate
-from tests.export.ctl_harness import STRICT, CStep, build, gcc, write
+from tests.export.ctl_harness import SANITIZE, STRICT, CStep, build, gcc, write
 
 ROOT = Path(__file__).resolve().parents[2]
 GAINS = ROOT / "src" / "fuzzyservo" / "data" / "gains"
@@ -254,14 +254,14 @@ def test_start_is_bumpless_and_instances_are_independent(tmp_path: Path) -> None
 
 def test_sanitizers_find_nothing(tmp_path: Path) -> None:
     """Each kind, with the paper's systems and with systems from files, built with
-    -fsanitize=address,undefined and driven by a C main over a closed-loop run: no report,
+    -O2 -fsanitize=address,undefined and driven by a C main over a closed-loop run: no report,
     and the commands equal Python's."""
     driver = """
 #include <stdio.h>
 #include "NAME.h"
 int main(int argc, char **argv)
 {
-    NAME_t c;
+    NAME_ctl c;
     double r, y, y0, u0;
     FILE *f = fopen(argv[1], "r");
     (void)argc;
@@ -293,8 +293,7 @@ int main(int argc, char **argv)
         (folder / "main.c").write_text(driver.replace("NAME", name))
         exe = folder / "run"
         proc = subprocess.run(
-            [gcc(), *STRICT, "-O1", "-g", "-fsanitize=address,undefined",
-             "-fno-sanitize-recover=all", "-o", str(exe), str(folder / "main.c"), str(src),
+            [gcc(), *STRICT, *SANITIZE, "-o", str(exe), str(folder / "main.c"), str(src),
              "-lm"], capture_output=True, text=True, check=False)
         assert proc.returncode == 0, proc.stderr
         plant, res = _run(kind, gains, "nonlinear", options={}, systems=systems,
@@ -324,8 +323,8 @@ def test_two_exports_link_into_one_program(tmp_path: Path) -> None:
 #include "axis2.h"
 int main(void)
 {
-    axis1_t a;
-    axis2_t b;
+    axis1_ctl a;
+    axis2_ctl b;
     axis1_init(&a, 0.5, 0.0);
     axis2_init(&b, 0.5, 0.0);
     printf("%a %a\\n", (double)axis1_step(&a, 0.6, 0.5), (double)axis2_step(&b, 0.6, 0.5));

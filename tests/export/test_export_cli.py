@@ -16,7 +16,7 @@ from fuzzyservo.errors import ParameterError
 from fuzzyservo.export import export_target_names
 from fuzzyservo.export.controller_c import emit_controller
 from fuzzyservo.registry import controller_kind, controller_names
-from tests.export.ctl_harness import STRICT, gcc
+from tests.export.cbuild import STRICT, gcc
 
 GAINS = Path(__file__).resolve().parents[2] / "src" / "fuzzyservo" / "data" / "gains"
 
@@ -98,6 +98,9 @@ def test_a_folder_with_other_files_is_refused_and_left_alone(
     (["--controller", "pi", "--gains", "kp=1,ki=1,q=3"], ("unknown gain 'q'",)),
     (["--controller", "pi", "--gains", "kp=1,ki=1", "--name", "int"], ("--name", "'int'")),
     (["--controller", "pi", "--gains", "kp=1,ki=1", "--name", "9x"], ("--name",)),
+    (["--controller", "pi", "--gains", "kp=1,ki=1", "--name", "fs"], ("--name", "'fs'")),
+    (["--controller", "pi", "--gains", "kp=1,ki=1", "--name", "fsm_x"], ("--name",)),
+    (["--controller", "pi", "--gains", "kp=1,ki=1", "--name", "_x"], ("--name",)),
     (["--controller", "pi", "--gains", "kp=1,ki=1", "--ts", "0"], ("--ts", "0")),
     (["--controller", "pi", "--gains", "kp=1,ki=1", "--initial-error", "first"],
      ("--initial-error", "pi")),
