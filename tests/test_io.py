@@ -7,6 +7,7 @@ import json
 import math
 import os
 import re
+import signal
 import subprocess
 import sys
 import tracemalloc
@@ -21,6 +22,7 @@ from fuzzyservo._io import (
     read_text,
     strict_json,
     write_text_atomic,
+    write_texts_atomic,
 )
 from fuzzyservo.errors import InputError, OutputError
 from fuzzyservo.sim.result import write_csv
@@ -208,3 +210,30 @@ def test_a_fifo_is_written_into_not_replaced(tmp_path: Path) -> None:
     assert got == [b"t,y\n0.0,0.5\n0.001,0.25\n"]
     assert fifo.is_fifo()
     assert check_output_path(fifo) == fifo
+
+
+def test_several_files_are_written_as_one(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                          ) -> None:
+    a, b = tmp_path / "x.c", tmp_path / "x.h"
+    a.write_text("old c")
+    b.write_text("old h")
+    # an error before the renames (the second file's folder is gone): both old files stay
+    with pytest.raises(OutputError, match="previous files, if any, are unchanged"):
+        write_texts_atomic({a: "new c", tmp_path / "gone" / "x.h": "new h"})
+    assert a.read_text() == "old c" and sorted(p.name for p in tmp_path.iterdir()) == [
+        "x.c", "x.h"]
+    # Ctrl-C between the two renames is held back until both are done, then delivered
+    real = os.replace
+    done: list[str] = []
+
+    def replace(src: str | Path, dst: str | Path) -> None:
+        real(src, dst)
+        done.append(str(dst))
+        if len(done) == 1:
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        write_texts_atomic({a: "new c", b: "new h"})
+    assert (a.read_text(), b.read_text()) == ("new c", "new h") and len(done) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.c", "x.h"]  # no temporaries

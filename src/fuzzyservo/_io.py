@@ -43,6 +43,7 @@ __all__ = [
     "terminate_gracefully",
     "write_bytes_atomic",
     "write_text_atomic",
+    "write_texts_atomic",
 ]
 
 
@@ -217,6 +218,70 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
     with atomic_write(path) as fh:
         fh.write(text)
     return Path(path)
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back for the duration of the block (the main thread's
+    handlers record them), then restore the handlers and deliver what arrived."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    saved = {sig: signal.signal(sig, lambda signum, frame: got.append(signum))
+             for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+        for signum in dict.fromkeys(got):
+            signal.raise_signal(signum)
+
+
+def write_texts_atomic(files: dict[Path, str]) -> list[Path]:
+    """Write several UTF-8 files as one: each to a temporary file in its folder, flushed and
+    fsynced, then all renamed over their targets with Ctrl-C and SIGTERM held back until the
+    last rename. An error or an interruption before the renames leaves every old file as it
+    was; the renames themselves cannot be split by a signal (only SIGKILL or a crash can).
+
+    Raises
+    ------
+    OutputError
+        A file cannot be written (every old file is unchanged).
+    """
+    temps: list[tuple[Path, Path]] = []
+    try:
+        for path, text in files.items():
+            target = Path(os.path.realpath(path))
+            fd, tmp_name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.",
+                                            suffix=".tmp")
+            temps.append((Path(tmp_name), target))
+            with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+                fh.write(text)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.chmod(tmp_name, _new_file_mode(target))
+        with _signals_deferred():
+            for tmp, target in temps:
+                os.replace(tmp, target)
+            temps = []
+        for folder in dict.fromkeys(Path(os.path.realpath(p)).parent for p in files):
+            with contextlib.suppress(OSError):  # make the renames durable
+                dfd = os.open(folder, os.O_RDONLY)
+                try:
+                    os.fsync(dfd)
+                finally:
+                    os.close(dfd)
+    except OSError as exc:
+        shown = ", ".join(repr(str(p)) for p in files)
+        raise OutputError(f"cannot write {shown}: {_describe(exc)}; the previous files, if "
+                          f"any, are unchanged") from None
+    finally:
+        for tmp, _ in temps:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+    return list(files)
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> Path:

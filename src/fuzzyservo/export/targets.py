@@ -17,7 +17,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from .._io import check_output_path, write_bytes_atomic, write_text_atomic
+from .._io import check_output_path, write_bytes_atomic, write_texts_atomic
 from ..errors import InputError
 from ..registry import controller_kind
 from ._c import Real
@@ -146,15 +146,20 @@ def check_c_folder(out: str | Path, name: str) -> Path:
 
 def export_c(cc: CController, out: str | Path) -> tuple[Path, Path]:
     """Write ``cc``'s header and source into the folder ``out`` (see :func:`check_c_folder`);
-    returns their paths. Each file is replaced atomically, the source first; the source
-    refuses to compile with a header of another export (a stamp both carry), so an
-    interruption between the two never leaves a mixed pair that builds."""
+    returns their paths. The two are written as one (``_io.write_texts_atomic``): an error
+    or an interruption leaves the previous pair, never one old and one new file; and should
+    a pair ever be mixed, the source refuses to compile with the header of another export (a
+    stamp both carry)."""
     folder = Path(out)
     check_c_folder(folder, cc.name)
-    folder.mkdir(exist_ok=True)
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {str(folder)!r}: cannot create the folder ({exc.strerror})"
+                         ) from None
+    hdr, src = folder / f"{cc.name}.h", folder / f"{cc.name}.c"
     files = cc.files()
-    src = write_text_atomic(folder / f"{cc.name}.c", files[f"{cc.name}.c"])
-    hdr = write_text_atomic(folder / f"{cc.name}.h", files[f"{cc.name}.h"])
+    write_texts_atomic({src: files[src.name], hdr: files[hdr.name]})
     return hdr, src
 
 
