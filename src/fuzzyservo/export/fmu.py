@@ -35,6 +35,7 @@ from xml.sax.saxutils import escape, quoteattr
 
 from .. import __version__
 from ..errors import FuzzyServoError, ParameterError
+from ..registry import controller_kind
 from ._c import c_literal
 from .controller_c import CController
 
@@ -466,9 +467,11 @@ def controller_fmu(cc: CController, *, kind_title: str, command: str = "") -> by
                     "parameter", "fixed", 0.0),
         FmuVariable("ts", "sample time", "s", "local", "constant", cc.ts),
     ]
+    kind = controller_kind(cc.kind)
     for g, v, u in zip(cc.gain_names, cc.gains, cc.gain_units, strict=True):
-        unit = u if u in _BASE_UNITS else ""
-        variables.append(FmuVariable(g, f"gain {g} [{u}]", unit, "parameter", "tunable", v))
+        unit = "1" if u == "-" else (u if u in _BASE_UNITS else "")
+        variables.append(FmuVariable(g, f"{kind.gain(g).description} [{u}]", unit,
+                                     "parameter", "tunable", v))
     wrapper = f"{identifier}_fmi2.c"
     alpha = (f"        m->alpha = (double){cc.name}_alpha(&m->c);\n" if cc.self_tuning
              else "")
