@@ -169,6 +169,16 @@ def _direct(target: Path, binary: bool) -> Iterator[IO[Any]]:
         raise OutputError(f"cannot write {str(target)!r}: {_describe(exc)}") from None
 
 
+def _fsync_folder(folder: Path) -> None:
+    """Make renames in ``folder`` durable (best effort: not every file system allows it)."""
+    with contextlib.suppress(OSError):
+        dfd = os.open(folder, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+
+
 @contextlib.contextmanager
 def _atomic_file(target: Path, binary: bool) -> Iterator[IO[Any]]:
     shown = target  # the name the caller gave, for messages
@@ -198,12 +208,7 @@ def _atomic_file(target: Path, binary: bool) -> Iterator[IO[Any]]:
         os.chmod(tmp, _new_file_mode(target))
         os.replace(tmp, target)
         done = True
-        with contextlib.suppress(OSError):  # make the rename itself durable
-            dfd = os.open(folder, os.O_RDONLY)
-            try:
-                os.fsync(dfd)
-            finally:
-                os.close(dfd)
+        _fsync_folder(folder)
     except OSError as exc:
         raise OutputError(f"cannot write {str(shown)!r}: {_describe(exc)}; "
                           f"the previous file, if any, is unchanged") from None
@@ -267,12 +272,7 @@ def write_texts_atomic(files: dict[Path, str]) -> list[Path]:
                 os.replace(tmp, target)
             temps = []
         for folder in dict.fromkeys(Path(os.path.realpath(p)).parent for p in files):
-            with contextlib.suppress(OSError):  # make the renames durable
-                dfd = os.open(folder, os.O_RDONLY)
-                try:
-                    os.fsync(dfd)
-                finally:
-                    os.close(dfd)
+            _fsync_folder(folder)
     except OSError as exc:
         shown = ", ".join(repr(str(p)) for p in files)
         raise OutputError(f"cannot write {shown}: {_describe(exc)}; the previous files, if "
