@@ -16,7 +16,7 @@ $(BIN)/python:
 	$(BIN)/python -m pip install $(PIP_QUIET) --upgrade pip
 
 $(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install $(PIP_QUIET) -e '.[test,bench]'
+	$(BIN)/python -m pip install $(PIP_QUIET) -e '.[test,bench,distributed]'
 	touch $(STAMP)
 
 $(FLVENV)/.installed-stamp:

@@ -22,6 +22,8 @@ ALLOWED: dict[str, set[str]] = {
     "export": {"registry", "control", "fuzzy", "formats", "plant", "sim", "paper"},
     "study": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis",
               "files", "plots"},
+    "sweep": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis",
+              "files", "plots", "study"},
 }
 ALWAYS = {"errors", "_typing", "_io", "__version__"}
 

@@ -45,6 +45,7 @@ COMMANDS: tuple[str, ...] = (
     "surface",
     "fis",
     "export",
+    "sweep",
     "reproduce",
 )
 

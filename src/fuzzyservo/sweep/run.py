@@ -1,0 +1,422 @@
+"""Run a sweep: chunks of points through the batched closed-loop kernels, locally or on a Dask
+cluster, into the folder's Parquet dataset.
+
+:func:`compute_chunk` is a pure function of the spec and the chunk index: the table of chunk
+``c`` is the same computed alone, after a resume, with any number of numba threads, or on any
+Dask worker. :func:`run_sweep` runs the chunks not yet written, writes each as it arrives
+(:mod:`fuzzyservo.sweep.dataset`), and shows a progress bar of runs with rate and ETA.
+
+Classification of each run (``outcome``), the rules of the study's claims C6 and C8
+(:func:`fuzzyservo.study.claims.response_outcome`), applied to the kernels' metrics:
+
+``diverged``     the state became non-finite
+``limit cycle``  the tail (last ``TAIL_FRACTION`` of the run) swings at least
+                 ``LIMIT_CYCLE_MIN_SWINGS`` times, peak to peak at least ``LIMIT_CYCLE_MIN_PP``
+                 of the step, and does not die out (second half's peak-to-peak at least
+                 ``LIMIT_CYCLE_MIN_SUSTAIN`` of the first half's)
+``not settled``  never inside the 2 % band for good
+``overshoots``   settles, but overshoots more than ``MAX_OVERSHOOT_PCT``
+``settles``      settles within the limit: ``robust`` is true
+``invalid``      the point has no valid plant (a drawn parameter out of its range, no
+                 equilibrium, a delay longer than the run, a reference out of the stroke);
+                 ``error`` says why
+
+One difference from ``response_outcome``: the step a limit cycle is measured against is the
+reference's move (r at the end minus the start position), not r at the end minus the first
+measured sample; they differ by the first sample's noise and transducer rounding.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..errors import FuzzyServoError, InputError, OutputError, ParameterError
+from ..plant import with_overrides
+from ..registry import build_plant
+from ..sim import simulate_batch
+from ..sim.closed_loop import check_delay, plant_limits, time_grid
+from ..sim.references import Step, check_reference, check_reference_samples, parse_reference
+from ..sim.stepinfo import METRIC_NAMES
+from ..study.claims import (
+    LIMIT_CYCLE_MIN_PP,
+    LIMIT_CYCLE_MIN_SUSTAIN,
+    LIMIT_CYCLE_MIN_SWINGS,
+    MAX_OVERSHOOT_PCT,
+    TAIL_FRACTION,
+)
+from .dataset import Manifest, adopt, finished_files, read_manifest, write_chunk
+from .sampling import Points, points
+from .spec import SweepSpec
+
+__all__ = [
+    "OUTCOMES",
+    "TAIL_COLUMNS",
+    "PointRuns",
+    "build_controllers",
+    "classify",
+    "columns",
+    "compute_chunk",
+    "run_sweep",
+]
+
+#: Outcomes of a run, from best to worst.
+OUTCOMES: tuple[str, ...] = ("settles", "overshoots", "not settled", "limit cycle", "diverged",
+                             "invalid")
+
+#: Tail-oscillation columns (``fuzzyservo.sim.stepinfo.TAIL_NAMES``).
+TAIL_COLUMNS: tuple[str, ...] = ("tail_peak_to_peak", "tail_swings", "tail_period",
+                                 "tail_sustain")
+
+
+def columns(spec: SweepSpec) -> list[str]:
+    """Column names of the sweep's table, in order."""
+    return ["point", "cell", "sample", "controller", *[v.name for v in spec.vary],
+            "noise_seed", *METRIC_NAMES, *TAIL_COLUMNS, "diverged", "outcome", "robust",
+            "error"]
+
+
+def classify(metrics: dict[str, FloatArray], step: FloatArray, diverged: np.ndarray,
+             invalid: np.ndarray) -> np.ndarray:
+    """The outcome of each run (see the module docstring), as an array of str."""
+    n = diverged.shape[0]
+    out = np.full(n, "settles", dtype=object)
+    os_ = metrics["overshoot"]
+    settle = metrics["settling_time"]
+    with np.errstate(invalid="ignore"):
+        out[os_ > MAX_OVERSHOOT_PCT] = "overshoots"
+        out[np.isnan(settle)] = "not settled"
+        cycle = ((metrics["tail_peak_to_peak"] >= LIMIT_CYCLE_MIN_PP * np.abs(step))
+                 & (metrics["tail_swings"] >= LIMIT_CYCLE_MIN_SWINGS)
+                 & (metrics["tail_sustain"] >= LIMIT_CYCLE_MIN_SUSTAIN))
+    out[cycle] = "limit cycle"
+    out[diverged] = "diverged"
+    out[invalid] = "invalid"
+    return out
+
+
+def build_controllers(spec: SweepSpec) -> list[Any]:
+    """The spec's controllers, built once (they are shipped to Dask workers as they are)."""
+    return [c.build(spec.ts) for c in spec.controllers]
+
+
+class PointRuns:
+    """The plants, delays, references and noise of some points of a sweep (what every
+    controller runs on): ``plants[j]`` (None for an invalid point, ``error[j]`` says why),
+    ``valid`` (bool per point), ``delay`` [s], ``roff`` (per-point reference offsets [m], or
+    None when all share ``ref``), ``noise`` (rows for the valid points [m], or None), ``step``
+    (the reference's move per point [m])."""
+
+    def __init__(self, spec: SweepSpec, pts: Points, t: FloatArray) -> None:
+        m = len(pts)
+        self.error: list[str | None] = [None] * m
+        self.plants: list[Any] = [None] * m
+        nominal = spec.nominal
+        param_names = [v.name for v in spec.vary if "." in v.name]
+        ref = parse_reference(spec.reference)
+        amp = pts.values.get("amplitude")
+        delay = pts.values.get("delay", np.full(m, spec.delay))
+        self.delay = np.asarray(delay, dtype=np.float64)
+        self.noise_std = np.asarray(pts.values.get("noise_std", np.full(m, spec.noise_std)))
+        cache: dict[tuple[float, ...], Any] = {}
+        checked_refs: dict[float, Any] = {}
+        self.roff: FloatArray | None = None
+        if amp is not None:
+            assert isinstance(ref, Step)
+            self.roff = np.empty((m, t.size))
+        base_roff = None
+        for j in range(m):
+            key = tuple(float(pts.values[nm][j]) for nm in param_names)
+            if key not in cache:
+                try:
+                    params = with_overrides(nominal, dict(zip(param_names, key, strict=True))) \
+                        if param_names else nominal
+                    cache[key] = build_plant(spec.plant, params,
+                                             spec.start * params.cylinder.stroke,
+                                             substep=spec.substep)
+                except FuzzyServoError as exc:
+                    cache[key] = exc
+            plant = cache[key]
+            try:
+                if isinstance(plant, FuzzyServoError):
+                    raise plant
+                check_delay(float(self.delay[j]), duration=spec.duration)
+                if amp is not None:
+                    a = float(amp[j])
+                    if a not in checked_refs:
+                        r_j = Step(a, ref.time)  # type: ignore[union-attr]
+                        check_reference(r_j, ts=spec.ts, duration=spec.duration)
+                        from ..sim.references import sample_reference
+
+                        checked_refs[a] = sample_reference(r_j, t)
+                    roff = checked_refs[a]
+                    assert self.roff is not None
+                    self.roff[j] = roff
+                else:
+                    if base_roff is None:
+                        from ..sim.references import sample_reference
+
+                        check_reference(ref, ts=spec.ts, duration=spec.duration)
+                        base_roff = sample_reference(ref, t)
+                    roff = base_roff
+                stroke, resolution = plant_limits(plant)
+                check_reference_samples(plant.y0 + roff, t, start=plant.y0, stroke=stroke,
+                                        resolution=resolution)
+                self.plants[j] = plant
+            except FuzzyServoError as exc:
+                self.error[j] = " ".join(str(exc).split())
+        self.ref = ref
+        self.valid = np.array([e is None for e in self.error], dtype=bool)
+        n = t.size
+        noisy = self.valid & (self.noise_std > 0.0)
+        self.noise: FloatArray | None = None
+        if np.any(noisy):
+            idx = np.flatnonzero(self.valid)
+            self.noise = np.zeros((idx.size, n))
+            for k, j in enumerate(idx):
+                if noisy[j]:
+                    rng = np.random.default_rng(int(pts.noise_seed[j]))
+                    self.noise[k] = rng.normal(0.0, float(self.noise_std[j]), size=(n,))
+        # the move the limit-cycle test measures against [m]
+        if amp is not None:
+            self.step = np.asarray(amp, dtype=np.float64).copy()
+        else:
+            self.step = np.full(m, float(base_roff[-1]) if base_roff is not None else math.nan)
+
+
+def compute_chunk(spec: SweepSpec, c: int, controllers: Sequence[Any] | None = None,
+                  threads: int | None = None) -> Any:
+    """The rows of chunk ``c`` as a ``pyarrow.Table`` (columns :func:`columns`), sorted by
+    (point, controller order of the spec).
+
+    ``controllers`` are the spec's, built (default: built here); ``threads`` sets numba's
+    threads for the batch kernels (None: as they are).
+    """
+    import pyarrow as pa
+
+    if threads is not None:
+        import numba
+
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+    ctls = list(controllers) if controllers is not None else build_controllers(spec)
+    lo, hi = spec.chunk_range(c)
+    pts = points(spec, lo, hi)
+    t = time_grid(spec.duration, spec.ts)
+    runs = PointRuns(spec, pts, t)
+    m = len(pts)
+    idx = np.flatnonzero(runs.valid)
+    mo = dict(spec.metric_options)
+    kw = {"rise": (mo.get("rise_low", 0.1), mo.get("rise_high", 0.9)),
+          "settle_band": mo.get("settle_band", 0.02),
+          "settle_band_2": mo.get("settle_band_2", 0.05)}
+    n_ctl = len(ctls)
+    n_rows = m * n_ctl
+    metric_cols = {name: np.full(n_rows, np.nan) for name in (*METRIC_NAMES, *TAIL_COLUMNS)}
+    diverged = np.zeros(n_rows, dtype=bool)
+    for k, ctl in enumerate(ctls):
+        if idx.size == 0:
+            break
+        reference: Any = runs.ref if runs.roff is None else runs.roff[idx]
+        res = simulate_batch(ctl, None, plant=[runs.plants[j] for j in idx], reference=reference,
+                             duration=spec.duration, delay=runs.delay[idx], noise=runs.noise,
+                             tail_fraction=TAIL_FRACTION, **kw)
+        rows = idx * n_ctl + k
+        for i, name in enumerate(res.metric_names):
+            metric_cols[name][rows] = res.metrics[:, i]
+        for i, name in enumerate(res.tail_names):
+            metric_cols[name][rows] = res.tail[:, i]
+        diverged[rows] = res.diverged
+    rep = np.repeat
+    invalid = rep(~runs.valid, n_ctl)
+    outcome = classify(metric_cols, rep(runs.step, n_ctl), diverged, invalid)
+    data: dict[str, Any] = {
+        "point": pa.array(rep(pts.index, n_ctl)),
+        "cell": pa.array(rep(pts.cell, n_ctl)),
+        "sample": pa.array(rep(pts.sample, n_ctl)),
+        "controller": pa.array([e.label for e in spec.controllers] * m).dictionary_encode(),
+    }
+    for name, vals in pts.values.items():
+        data[name] = pa.array(rep(vals, n_ctl))
+    data["noise_seed"] = pa.array(rep(pts.noise_seed, n_ctl))
+    for name, vals in metric_cols.items():
+        data[name] = pa.array(vals)
+    data["diverged"] = pa.array(diverged)
+    data["outcome"] = pa.array(outcome.tolist(), type=pa.string()).dictionary_encode()
+    data["robust"] = pa.array(outcome == "settles")
+    data["error"] = pa.array([e for e in runs.error for _ in range(n_ctl)], type=pa.string())
+    return pa.table(data)
+
+
+# ---- orchestration ----------------------------------------------------------------------------
+
+def _prepare(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None) -> Manifest:
+    """Create the folder and manifest, or check and reopen them for a resume."""
+    manifest_path = out / "manifest.json"
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {str(out)!r} is a file; give a folder for the sweep")
+    if manifest_path.exists():
+        man = read_manifest(out)
+        if not resume:
+            raise OutputError(f"{str(out)!r} already holds a sweep ({len(man.chunks)} of "
+                              f"{man.n_chunks} chunks): add --resume to continue it, or give "
+                              f"a new folder")
+        if man.digest != spec.digest:
+            diff = sorted(k for k in set(man.spec) | set(spec.canonical())
+                          if man.spec.get(k) != spec.canonical().get(k))
+            raise InputError(f"{str(out)!r} holds a different sweep (its spec differs in "
+                             f"{', '.join(diff) or 'its files'}); --resume continues only the "
+                             f"same spec: give a new folder")
+        for c, _path in finished_files(out).items():
+            if str(c) not in man.chunks and c < man.n_chunks:
+                lo, hi = spec.chunk_range(c)
+                adopt(out, man, c, (hi - lo) * len(spec.controllers))
+        return man
+    if out.is_dir() and any(out.iterdir()):
+        raise OutputError(f"--out {str(out)!r} is a folder that is not empty and holds no "
+                          f"sweep; give a new or empty folder")
+    if resume:
+        raise InputError(f"--resume: {str(out)!r} holds no sweep to resume")
+    try:
+        (out / "chunks").mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create {str(out)!r}: {exc.strerror or exc}") from None
+    man = Manifest.new(spec.digest, spec.canonical(), spec.n_points, spec.n_chunks, spec.n_runs,
+                       columns(spec))
+    if spec_text is not None:
+        from .._io import write_text_atomic
+
+        write_text_atomic(out / "spec.toml", spec_text)
+    man.write(out)
+    return man
+
+
+@contextlib.contextmanager
+def _progress(total: int, done: int, enabled: bool | None) -> Iterator[Callable[[int], None]]:
+    show = sys.stderr.isatty() if enabled is None else enabled
+    if not show:
+        yield lambda k: None
+        return
+    from tqdm import tqdm
+
+    bar = tqdm(total=total, initial=done, unit=" runs", unit_scale=True, desc="sweep",
+               file=sys.stderr, smoothing=0.1)
+    try:
+        yield bar.update
+    except BaseException:
+        bar.leave = False
+        raise
+    finally:
+        bar.close()
+
+
+def _chunk_task(spec: SweepSpec, c: int, controllers: Sequence[Any]) -> tuple[int, Any]:
+    """A Dask task: chunk ``c`` on one numba thread (the worker is the unit of parallelism)."""
+    return c, compute_chunk(spec, c, controllers, threads=1)
+
+
+def _dask_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
+                 workers: int | None, scheduler: str | None) -> Iterator[tuple[int, Any]]:
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:
+        raise InputError("--workers and --scheduler run on dask.distributed, which is not "
+                         "installed: pip install 'fuzzyservo[distributed]'") from None
+    cluster = None
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"--scheduler {scheduler!r}: cannot connect ({exc})") from None
+    else:
+        cluster = LocalCluster(n_workers=int(workers or 1), threads_per_worker=1,
+                               processes=True, host="127.0.0.1", dashboard_address=None,
+                               silence_logs=40)
+        client = Client(cluster)
+    try:
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})) or int(workers or 1))
+        ctl_future = client.scatter(list(controllers), broadcast=True)
+        spec_future = client.scatter(spec, broadcast=True)
+        pending = list(todo)
+        in_flight = 2 * n_workers  # a queue of one per worker: no worker idles between chunks
+        ac = as_completed()
+        for _ in range(min(in_flight, len(pending))):
+            ac.add(client.submit(_chunk_task, spec_future, pending.pop(0), ctl_future,
+                                 pure=False))
+        for fut in ac:
+            c, table = fut.result()
+            fut.release()
+            if pending:
+                ac.add(client.submit(_chunk_task, spec_future, pending.pop(0), ctl_future,
+                                     pure=False))
+            yield c, table
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def run_sweep(spec: SweepSpec, out: str | Path, *, resume: bool = False,
+              workers: int | None = None, scheduler: str | None = None,
+              progress: bool | None = None, spec_text: str | None = None,
+              on_chunk: Callable[[int], None] | None = None) -> Manifest:
+    """Run the chunks of ``spec`` not yet in ``out`` and return the manifest.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep.
+    out : path
+        Its folder: new or empty, or (``resume``) one holding the same sweep.
+    resume : bool
+        Continue a sweep: skip its finished chunks.
+    workers : int, optional
+        Run on a local Dask cluster of this many single-threaded worker processes
+        (127.0.0.1 only). Default: in this process, on every numba thread.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://host:8786``) to run the chunks on.
+    progress : bool, optional
+        Show a progress bar on standard error (default: when it is a terminal).
+    spec_text : str, optional
+        The spec file's text, kept as ``spec.toml`` in a new folder.
+    on_chunk : callable, optional
+        Called with each chunk index once it is written (tests use it to interrupt).
+
+    Raises
+    ------
+    OutputError
+        ``out`` holds something else, or cannot be written.
+    InputError
+        A resume of a different sweep, or no sweep to resume.
+    """
+    if workers is not None and scheduler is not None:
+        raise ParameterError("give --workers N (a local Dask cluster) or --scheduler ADDRESS, "
+                             "not both")
+    if workers is not None and not (isinstance(workers, int) and 1 <= workers <= 1024):
+        raise ParameterError(f"--workers must be an integer in [1, 1024], got {workers!r}")
+    out = Path(out)
+    man = _prepare(spec, out, resume, spec_text)
+    todo = [c for c in range(spec.n_chunks) if c not in man.done]
+    controllers = build_controllers(spec)
+    n_ctl = len(spec.controllers)
+    done_runs = sum(int(v["rows"]) for v in man.chunks.values())
+    with _progress(spec.n_runs, done_runs, progress) as tick:
+        if workers is None and scheduler is None:
+            chunks: Iterator[tuple[int, Any]] = (
+                (c, compute_chunk(spec, c, controllers)) for c in todo)
+        else:
+            chunks = _dask_chunks(spec, todo, controllers, workers, scheduler)
+        for c, table in chunks:
+            man.chunks[str(c)] = write_chunk(out, c, table)
+            man.write(out)
+            lo, hi = spec.chunk_range(c)
+            tick((hi - lo) * n_ctl)
+            if on_chunk is not None:
+                on_chunk(c)
+    return man

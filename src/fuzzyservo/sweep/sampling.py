@@ -1,0 +1,130 @@
+"""The points of a sweep: grid cells and random draws, a pure function of the spec, the seed and
+the point's index.
+
+Every random number is computed from (seed, variation, point index) by a counter-based
+generator (SplitMix64's finaliser; Steele, Lea & Flood 2014), not drawn from a stream: point
+``i`` gets the same values whether it is computed alone, in any chunk, after a resume or on
+any Dask worker. A uniform u in (0, 1) becomes a value by the distribution's inverse CDF, so
+truncation to bounds is exact (no rejection loop, no clipping):
+
+- ``uniform``: low + (high - low) u
+- ``log-uniform``: exp(ln low + (ln high - ln low) u)
+- ``normal``: mean + std Φ⁻¹(Φ(a) + u (Φ(b) - Φ(a))), a, b the bounds in standard units
+- ``log-normal``: median exp(sigma z), z the truncated standard normal of ln(bounds/median)/sigma
+
+A relative variation multiplies the nominal value by the draw. The sensor noise of a point is
+``numpy.random.default_rng(noise_seed).normal(0, noise_std, n)``, the very sequence
+``fuzzyservo simulate --noise-std STD --seed noise_seed`` draws, so every run can be replayed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import ndtr, ndtri
+
+from .._typing import FloatArray, IntArray
+from .spec import SweepSpec, Variation
+
+__all__ = ["Points", "counter_uniform", "points", "transform"]
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+#: Stream number of the noise seeds (variations use 1, 2, ... in spec order).
+_NOISE_STREAM = 0
+
+
+def _mix(x: np.ndarray) -> np.ndarray:
+    """SplitMix64's output function on uint64 (wrapping arithmetic)."""
+    z = x + _GOLDEN
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+def _key(seed: int, stream: int) -> np.ndarray:
+    return _mix(_mix(np.array([seed], dtype=np.uint64)) ^ np.array([stream], dtype=np.uint64))
+
+
+def _bits(seed: int, stream: int, index: IntArray) -> np.ndarray:
+    return _mix(_key(seed, stream) ^ _mix(index.astype(np.uint64)))
+
+
+def counter_uniform(seed: int, stream: int, index: IntArray) -> FloatArray:
+    """Uniform numbers in the open interval (0, 1), one per ``index``: 53 random bits plus half
+    an ulp, so neither 0 nor 1 occurs (an inverse CDF stays finite)."""
+    b = _bits(seed, stream, np.asarray(index, dtype=np.int64))
+    return ((b >> np.uint64(11)).astype(np.float64) + 0.5) * 2.0 ** -53
+
+
+def noise_seeds(seed: int, index: IntArray) -> IntArray:
+    """The noise seed of each point (non-negative, below 2**63)."""
+    b = _bits(seed, _NOISE_STREAM, np.asarray(index, dtype=np.int64))
+    return (b >> np.uint64(1)).astype(np.int64)
+
+
+def _truncated_std_normal(u: FloatArray, a: float, b: float) -> FloatArray:
+    lo, hi = float(ndtr(a)), float(ndtr(b))
+    z = ndtri(lo + u * (hi - lo))
+    return np.clip(z, a, b)  # rounding of Φ⁻¹ near the bounds: stay inside them
+
+
+def transform(var: Variation, u: FloatArray) -> FloatArray:
+    """Values of a random variation (factors when relative) from uniforms ``u``."""
+    lo, hi = var.arg("low", -math.inf), var.arg("high", math.inf)
+    if var.distribution == "uniform":
+        return lo + (hi - lo) * u
+    if var.distribution == "log-uniform":
+        a, b = math.log(lo), math.log(hi)
+        return np.exp(a + (b - a) * u)
+    if var.distribution == "normal":
+        mean, std = var.arg("mean"), var.arg("std")
+        return mean + std * _truncated_std_normal(u, (lo - mean) / std, (hi - mean) / std)
+    if var.distribution == "log-normal":
+        med, sig = var.arg("median"), var.arg("sigma")
+        a = math.log(lo / med) / sig if lo > 0.0 else -math.inf
+        b = math.log(hi / med) / sig if math.isfinite(hi) else math.inf
+        return med * np.exp(sig * _truncated_std_normal(u, a, b))
+    raise AssertionError(var.distribution)
+
+
+@dataclass(frozen=True, slots=True)
+class Points:
+    """Points [lo, hi) of a sweep."""
+
+    index: IntArray  #: point index
+    cell: IntArray  #: grid cell
+    sample: IntArray  #: draw within the cell
+    values: dict[str, FloatArray]  #: every varied quantity, absolute SI value per point
+    noise_seed: IntArray  #: seed of each point's sensor noise
+
+    def __len__(self) -> int:
+        return int(self.index.size)
+
+
+def points(spec: SweepSpec, lo: int, hi: int) -> Points:
+    """The points [lo, hi) of ``spec``."""
+    index = np.arange(lo, hi, dtype=np.int64)
+    cell = index // spec.samples
+    sample = index % spec.samples
+    values: dict[str, FloatArray] = {}
+    grid = spec.grid
+    sizes = [len(v.values) for v in grid]
+    stride = math.prod(sizes)
+    for var, size in zip(grid, sizes, strict=True):
+        stride //= size
+        k = (cell // stride) % size
+        values[var.name] = np.asarray(var.values, dtype=np.float64)[k]
+    for stream, var in enumerate(spec.vary, start=1):
+        if var.is_grid:
+            continue
+        values[var.name] = transform(var, counter_uniform(spec.seed, stream, index))
+    for var in spec.vary:
+        if var.relative:
+            values[var.name] = spec.nominal_value(var.name) * values[var.name]
+    ordered = {v.name: values[v.name] for v in spec.vary}
+    return Points(index=index, cell=cell, sample=sample, values=ordered,
+                  noise_seed=noise_seeds(spec.seed, index))

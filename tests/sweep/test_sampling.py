@@ -1,0 +1,96 @@
+"""The points of a sweep: grids, distributions, and independence from chunking.
+
+References: itertools.product for the grid, scipy.stats (truncnorm, lognorm, uniform,
+loguniform) for the inverse CDFs and a Kolmogorov-Smirnov test of the drawn values.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from fuzzyservo.sweep import parse_spec, points
+from fuzzyservo.sweep.sampling import counter_uniform, noise_seeds, transform
+from fuzzyservo.sweep.spec import Variation
+
+CTL = [{"controller": "pi", "gains": {"kp": 1.0, "ki": 0.5}}]
+
+
+def _spec(vary: list[dict], samples: int = 1, **sweep: object) -> object:
+    return parse_spec({"sweep": {"samples": samples, "seed": 7, **sweep}, "controllers": CTL,
+                       "vary": vary})
+
+
+def test_grid_is_the_full_factorial_first_slowest() -> None:
+    spec = _spec([{"name": "load.mass", "grid": [1.0, 2.0, 3.0]},
+                  {"name": "delay", "grid": [0.0, 0.01]},
+                  {"name": "amplitude", "grid": [0.05, 0.1]}], samples=2, noise_std=1e-6)
+    pts = points(spec, 0, spec.n_points)
+    expect = [c for c in itertools.product([1.0, 2.0, 3.0], [0.0, 0.01], [0.05, 0.1])
+              for _ in range(2)]
+    got = list(zip(*(pts.values[n].tolist() for n in ("load.mass", "delay", "amplitude")),
+                   strict=True))
+    assert got == expect
+    assert pts.sample.tolist() == [0, 1] * 12
+    assert pts.cell.tolist() == [i // 2 for i in range(24)]
+
+
+def test_points_do_not_depend_on_the_chunking() -> None:
+    spec = _spec([{"name": "load.mass", "grid": [1.0, 2.0]},
+                  {"name": "supply.pressure", "relative": True, "distribution": "normal",
+                   "mean": 1.0, "std": 0.05, "low": 0.9, "high": 1.1},
+                  {"name": "noise_std", "distribution": "log-uniform", "low": 1e-6,
+                   "high": 1e-4}], samples=50)
+    whole = points(spec, 0, spec.n_points)
+    for lo, hi in ((0, 1), (17, 63), (99, 100), (40, 100)):
+        part = points(spec, lo, hi)
+        for name in whole.values:
+            assert np.array_equal(part.values[name], whole.values[name][lo:hi])
+        assert np.array_equal(part.noise_seed, whole.noise_seed[lo:hi])
+
+
+def test_seed_and_variation_give_independent_streams() -> None:
+    idx = np.arange(10_000)
+    a, b, c = (counter_uniform(1, 1, idx), counter_uniform(1, 2, idx),
+               counter_uniform(2, 1, idx))
+    assert np.all((a > 0.0) & (a < 1.0))
+    for x, y in ((a, b), (a, c)):
+        assert abs(np.corrcoef(x, y)[0, 1]) < 0.05
+    assert stats.kstest(a, "uniform").pvalue > 1e-3
+    seeds = noise_seeds(1, idx)
+    assert seeds.min() >= 0 and np.unique(seeds).size == seeds.size
+
+
+@pytest.mark.parametrize(("dist", "args", "ref"), [
+    ("uniform", {"low": 2.0, "high": 5.0}, stats.uniform(2.0, 3.0)),
+    ("log-uniform", {"low": 0.5, "high": 2.0}, stats.loguniform(0.5, 2.0)),
+    ("normal", {"mean": 1.0, "std": 0.1, "low": 0.85, "high": 1.3},
+     stats.truncnorm(-1.5, 3.0, loc=1.0, scale=0.1)),
+    ("normal", {"mean": -3.0, "std": 2.0}, stats.norm(-3.0, 2.0)),
+    ("log-normal", {"median": 1e-5, "sigma": 0.5}, stats.lognorm(0.5, scale=1e-5)),
+])
+def test_inverse_cdf_matches_scipy(dist: str, args: dict, ref: object) -> None:
+    var = Variation(name="delay", distribution=dist, args=tuple(args.items()))
+    u = np.linspace(1e-6, 1.0 - 1e-6, 2001)
+    np.testing.assert_allclose(transform(var, u), ref.ppf(u), rtol=1e-9, atol=0.0)
+
+
+def test_truncated_log_normal_stays_in_its_bounds_and_follows_its_law() -> None:
+    spec = _spec([{"name": "noise_std", "distribution": "log-normal", "median": 1e-5,
+                   "sigma": 0.5, "high": 2e-5}], samples=4000)
+    x = points(spec, 0, spec.n_points).values["noise_std"]
+    assert x.max() <= 2e-5 and x.min() > 0.0
+    b = math.log(2.0) / 0.5
+    ref = stats.truncnorm(-np.inf, b)
+    assert stats.kstest(np.log(x / 1e-5) / 0.5, ref.cdf).pvalue > 1e-3
+
+
+def test_relative_values_multiply_the_nominal() -> None:
+    spec = _spec([{"name": "load.mass", "relative": True, "grid": [0.5, 2.0]}])
+    pts = points(spec, 0, 2)
+    m0 = spec.nominal.load.mass
+    assert pts.values["load.mass"].tolist() == [0.5 * m0, 2.0 * m0]
