@@ -1,4 +1,5 @@
-"""Compiled core of the step-response metrics, shared by the batch kernel and the analysis API.
+"""Compiled cores of the step-response metrics and of the tail oscillation, shared by the batch
+kernel and the analysis and study APIs.
 
 :func:`step_metrics_core` fills a float64 buffer in the order of :data:`METRIC_NAMES` without
 allocating, so the batched closed-loop kernel can call it once per run on a reused per-thread
@@ -7,6 +8,11 @@ wraps the buffer in a frozen ``StepMetrics``. The definitions are those of pytho
 ``step_info`` (threshold crossings and band exits taken at samples, no interpolation), measured
 between an initial value ``y0`` and a target ``y_final``; ``docs/model.md`` ("Step metrics")
 defines each metric and says when it is NaN.
+
+:func:`tail_oscillation_core` measures how a response moves over the last part of the run (its
+peak-to-peak, swings across its mean, their period and whether they are sustained): the batch
+kernel fills ``BatchResult.tail`` with it and :func:`fuzzyservo.study.claims.tail_oscillation`
+(the limit-cycle test of the study) wraps it.
 """
 
 from __future__ import annotations
@@ -24,11 +30,16 @@ __all__ = [
     "METRIC_NAMES",
     "NO_STEP_RTOL",
     "N_METRICS",
+    "N_TAIL",
     "SETTLE_HOLD_FRACTION",
     "StepMetrics",
+    "TAIL_NAMES",
+    "TAIL_WORK",
     "metric_options",
     "metrics_of",
     "step_metrics_core",
+    "tail_oscillation_core",
+    "tail_oscillation_work",
 ]
 
 #: Names of the metrics, in the order :func:`step_metrics_core` writes them.
@@ -51,6 +62,18 @@ METRIC_NAMES: tuple[str, ...] = (
 
 #: Number of metrics; ``out`` must hold at least this many values.
 N_METRICS: int = len(METRIC_NAMES)
+
+#: Names of the tail-oscillation measures, in the order :func:`tail_oscillation_core` writes
+#: them (its ``out[N_TAIL]`` is the length of the tail window, not a measure of the response).
+TAIL_NAMES: tuple[str, ...] = (
+    "tail_peak_to_peak",
+    "tail_swings",
+    "tail_period",
+    "tail_sustain",
+)
+
+#: Number of tail measures; ``tail_oscillation_core``'s ``out`` holds ``N_TAIL + 1`` values.
+N_TAIL: int = len(TAIL_NAMES)
 
 #: Fraction of the record (``t[-1] - t[0]``) at its end that a response must spend inside a
 #: settling band to count as settled: a settling time is NaN unless the last sample outside
@@ -227,6 +250,228 @@ def step_metrics_core(
         out[_UMAX] = u_max
         out[_USQ] = u_sq
         out[_UTV] = u_tv
+
+
+# Tail oscillation. The sums are numpy's pairwise summation (numpy's ``pairwise_sum``: eight
+# interleaved partial sums in blocks of at most 128 values, the two halves of a larger range
+# summed separately and added), so the tail's mean and the mean swing period are bit for bit
+# those of ``np.mean``. The values are drawn in order from a stream (the tail's samples, or
+# the times between its swings), so nothing is stored; the halves are walked with an explicit
+# stack in a caller's work array (a recursive njit function cannot be cached: numba #6061).
+_PW_BLOCK = 128
+#: Rows of the work array of :func:`tail_oscillation_work` (the depth of the pairwise tree).
+TAIL_WORK = 64
+
+
+@numba.njit(cache=True, nogil=True)
+def _stream_next(mode: int, t: FloatArray, y: FloatArray, k: int, side: int, t_last: float,
+                 mean: float, h: float) -> tuple[float, int, int, float]:
+    """Next value of a stream and the stream's new state ``(k, side, t_last)``.
+
+    Mode 0: the sample ``y[k]``. Mode 1: the time from the last swing (at ``t_last``, to
+    ``side``) to the next one at or after ``k``: the next sample whose deviation from ``mean``
+    is beyond ``h`` on the other side.
+    """
+    if mode == 0:
+        return y[k], k + 1, side, t_last
+    while True:
+        dev = y[k] - mean
+        s = 1 if dev > h else (-1 if dev < -h else 0)
+        if s != 0 and s != side:
+            return t[k] - t_last, k + 1, s, t[k]
+        k += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def _block_stream(mode: int, n: int, t: FloatArray, y: FloatArray, k: int, side: int,
+                  t_last: float, mean: float, h: float) -> tuple[float, int, int, float]:
+    """numpy's sum of a block of ``n <= 128`` stream values; the sum and the new state."""
+    if n < 8:
+        res = 0.0
+        for _ in range(n):
+            v, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+            res += v
+        return res, k, side, t_last
+    r0, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+    r1, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+    r2, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+    r3, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+    r4, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+    r5, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+    r6, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+    r7, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+    i = 8
+    while i < n - n % 8:
+        v, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+        r0 += v
+        v, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+        r1 += v
+        v, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+        r2 += v
+        v, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+        r3 += v
+        v, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+        r4 += v
+        v, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+        r5 += v
+        v, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+        r6 += v
+        v, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+        r7 += v
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        v, k, side, t_last = _stream_next(mode, t, y, k, side, t_last, mean, h)
+        res += v
+        i += 1
+    return res, k, side, t_last
+
+
+@numba.njit(cache=True, nogil=True)
+def _pairwise_stream(mode: int, n: int, t: FloatArray, y: FloatArray, k: int, side: int,
+                     t_last: float, mean: float, h: float, work: FloatArray) -> float:
+    """Sum of the next ``n`` values of a stream (:func:`_stream_next`) in numpy's pairwise
+    order. ``work`` (TAIL_WORK, 3) is the stack of the ranges split in two: the size of the
+    right half, the left half's sum, whether the left half is done."""
+    d = 0
+    size = n
+    while True:
+        while size > _PW_BLOCK:
+            n2 = size // 2
+            n2 -= n2 % 8
+            work[d, 0] = size - n2
+            work[d, 2] = 0.0
+            d += 1
+            size = n2
+        v, k, side, t_last = _block_stream(mode, size, t, y, k, side, t_last, mean, h)
+        while d > 0 and work[d - 1, 2] == 1.0:
+            d -= 1
+            v = work[d, 1] + v
+        if d == 0:
+            return v
+        work[d - 1, 1] = v
+        work[d - 1, 2] = 1.0
+        size = int(work[d - 1, 0])
+
+
+@numba.njit(cache=True, nogil=True)
+def tail_oscillation_core(t: FloatArray, y: FloatArray, tail_fraction: float,
+                          out: FloatArray) -> None:
+    """:func:`tail_oscillation_work` with its own work array (one small allocation)."""
+    tail_oscillation_work(t, y, tail_fraction, out, np.empty((TAIL_WORK, 3)))
+
+
+@numba.njit(cache=True, nogil=True)
+def tail_oscillation_work(t: FloatArray, y: FloatArray, tail_fraction: float,
+                          out: FloatArray, work: FloatArray) -> None:
+    """Write how ``y`` moves over the last ``tail_fraction`` of the record into ``out``,
+    allocating nothing (scratch in ``work``): ``out[:N_TAIL]`` in the order of
+    :data:`TAIL_NAMES`, ``out[N_TAIL]`` the length of the window.
+
+    Parameters
+    ----------
+    t : float64[:]
+        Sample times, non-decreasing [s].
+    y : float64[:]
+        Samples, same length as ``t`` [unit of y].
+    tail_fraction : float
+        The window is ``t >= t[0] + (1 - tail_fraction) (t[-1] - t[0])`` [1].
+    out : float64[:]
+        At least ``N_TAIL + 1`` values: the peak-to-peak of y over the window (max - min)
+        [unit of y]; the swings, the number of times y passes from below the window's mean
+        minus a quarter of that peak-to-peak to above the mean plus that quarter, or back
+        (a hysteresis relative to the oscillation itself, so tiny wiggles at the mean do not
+        count) [1]; the period, twice the mean time between consecutive swings (NaN with
+        fewer than 3 swings) [s]; the sustain, the peak-to-peak over the second half of the
+        window (in time) over that over its first half (NaN when the first half's is 0) [1];
+        the window's length ``t[-1] - start`` [s].
+    work : float64[TAIL_WORK, 3]
+        Scratch space (the batch kernel reuses one per thread).
+
+    Notes
+    -----
+    With fewer than 2 samples in the window every measure is NaN except the swings (0). A NaN
+    in the window makes the peak-to-peak NaN and the swings 0, as numpy's ``ptp`` and
+    comparisons do. The mean and the mean period are summed in numpy's pairwise order, so
+    the results equal those of the numpy formulation bit for bit (tests/study/test_claims.py
+    keeps it as an independent reference).
+    """
+    n = t.shape[0]
+    for i in range(N_TAIL + 1):
+        out[i] = np.nan
+    if n == 0:
+        out[1] = 0.0
+        return
+    start = t[0] + (1.0 - tail_fraction) * (t[n - 1] - t[0])
+    out[N_TAIL] = t[n - 1] - start
+    k0 = n
+    while k0 > 0 and t[k0 - 1] >= start:
+        k0 -= 1
+    m = n - k0
+    out[1] = 0.0
+    if m < 2:
+        return
+    # peak-to-peak over the window and over its two halves in time (NaN propagates, as ptp)
+    mid = t[k0] + 0.5 * (t[n - 1] - t[k0])
+    lo = y[k0]
+    hi = y[k0]
+    lo1 = np.inf
+    hi1 = -np.inf
+    lo2 = np.inf
+    hi2 = -np.inf
+    n1 = 0
+    n2 = 0
+    nan_all = False
+    nan1 = False
+    nan2 = False
+    for k in range(k0, n):
+        v = y[k]
+        if v != v:
+            nan_all = True
+            if t[k] < mid:
+                nan1 = True
+                n1 += 1
+            else:
+                nan2 = True
+                n2 += 1
+            continue
+        lo = min(lo, v)
+        hi = max(hi, v)
+        if t[k] < mid:
+            lo1 = min(lo1, v)
+            hi1 = max(hi1, v)
+            n1 += 1
+        else:
+            lo2 = min(lo2, v)
+            hi2 = max(hi2, v)
+            n2 += 1
+    pp = np.nan if nan_all else float(hi - lo)
+    p1 = (np.nan if nan1 else hi1 - lo1) if n1 > 0 else 0.0
+    p2 = (np.nan if nan2 else hi2 - lo2) if n2 > 0 else 0.0
+    out[0] = pp
+    out[3] = p2 / p1 if p1 > 0.0 else np.nan
+    # swings across mean +- pp/4
+    total = _pairwise_stream(0, m, t, y, k0, 0, 0.0, 0.0, 0.0, work)
+    mean = total / m
+    h = pp / 4.0
+    swings = 0
+    side = 0
+    k_first = -1
+    for k in range(k0, n):
+        dev = y[k] - mean
+        s = 1 if dev > h else (-1 if dev < -h else 0)
+        if s != 0:
+            if side != 0 and s != side:
+                swings += 1
+                if k_first < 0:
+                    k_first = k
+            side = s
+    out[1] = float(swings)
+    if swings >= 3:
+        side = 1 if y[k_first] - mean > h else -1
+        total = _pairwise_stream(1, swings - 1, t, y, k_first + 1, side, t[k_first], mean,
+                                 h, work)
+        out[2] = 2.0 * (total / (swings - 1))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray
+from ..sim.stepinfo import N_TAIL, tail_oscillation_core
 
 __all__ = [
     "CLAIM_RULES",
@@ -248,31 +249,18 @@ def tail_oscillation(t: FloatArray, y: FloatArray, *,
 
     A swing is counted each time y passes from below its tail mean minus a quarter of its
     tail peak-to-peak to above the mean plus that quarter, or back (a hysteresis relative to
-    the oscillation itself, so that tiny wiggles at the mean are not counted).
+    the oscillation itself, so that tiny wiggles at the mean are not counted). The measures
+    are :func:`fuzzyservo.sim.stepinfo.tail_oscillation_core`'s, the function the batch
+    simulator fills ``BatchResult.tail`` with (``t`` non-decreasing [s], ``y`` [m]).
     """
-    t = np.asarray(t, dtype=np.float64)
-    y = np.asarray(y, dtype=np.float64)
-    start = t[0] + (1.0 - tail) * (t[-1] - t[0])
-    sel = t >= start
-    tt, yy = t[sel], y[sel]
-    window = float(t[-1] - start)
-    if yy.size < 2:
-        return TailOscillation(math.nan, 0, math.nan, math.nan, window)
-    pp = float(np.ptp(yy))
-    dev = yy - float(np.mean(yy))
-    h = pp / 4.0
-    side = np.where(dev > h, 1, np.where(dev < -h, -1, 0))
-    on = side != 0
-    sides, times = side[on], tt[on]
-    change = np.nonzero(np.diff(sides))[0] + 1
-    swings = int(change.size)
-    period = float(2.0 * np.mean(np.diff(times[change]))) if swings >= 3 else math.nan
-    mid = tt[0] + 0.5 * (tt[-1] - tt[0])
-    first, second = yy[tt < mid], yy[tt >= mid]
-    p1 = float(np.ptp(first)) if first.size else 0.0
-    p2 = float(np.ptp(second)) if second.size else 0.0
-    sustain = p2 / p1 if p1 > 0.0 else math.nan
-    return TailOscillation(pp, swings, period, sustain, window)
+    tc = np.ascontiguousarray(t, dtype=np.float64)
+    yc = np.ascontiguousarray(y, dtype=np.float64)
+    if tc.ndim != 1 or tc.shape != yc.shape:
+        raise ValueError(f"t and y need the same 1-D shape, got {tc.shape} and {yc.shape}")
+    out = np.empty(N_TAIL + 1)
+    tail_oscillation_core(tc, yc, float(tail), out)
+    return TailOscillation(float(out[0]), int(out[1]), float(out[2]), float(out[3]),
+                           float(out[N_TAIL]))
 
 
 def _is_limit_cycle(osc: TailOscillation, step: float) -> bool:
