@@ -4,8 +4,10 @@ and parallel across cores (numba ``prange``), with per-run step metrics.
 This is what tuning (a differential-evolution population per call) and robustness sweeps call.
 Each run is exactly :func:`fuzzyservo.sim.closed_loop.simulate` (the same compiled single-run
 loops and the same controller and plant functions); traces are kept only on request, and the
-metrics (``fuzzyservo.sim.stepinfo.METRIC_NAMES``) are computed inside the kernel on per-chunk
-buffers that are reused from run to run.
+metrics (``fuzzyservo.sim.stepinfo.METRIC_NAMES``) and the tail oscillation
+(``TAIL_NAMES``) are computed inside the kernel on per-chunk buffers that are reused from run
+to run. Runs may differ in gains, plant, delay, reference (one row per run) and measurement
+noise (explicit rows, e.g. one seeded generator per run, or drawn from one ``rng``).
 
 Example (``ctl`` a controller, ``gains`` one row per run, ``plant`` a LinearPlant)::
 
@@ -15,6 +17,7 @@ Example (``ctl`` a controller, ``gains`` one row per run, ``plant`` a LinearPlan
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numba
@@ -22,7 +25,7 @@ import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..control.base import PackedController
-from ..errors import ParameterError
+from ..errors import InputError, ParameterError
 from ..plant.zoh import split_delay
 from .closed_loop import (
     DEFAULT_DELAY,
@@ -41,7 +44,16 @@ from .closed_loop import (
 )
 from .references import Reference, sample_reference
 from .result import BatchResult
-from .stepinfo import METRIC_NAMES, N_METRICS, metric_options, step_metrics_core
+from .stepinfo import (
+    METRIC_NAMES,
+    N_METRICS,
+    N_TAIL,
+    TAIL_NAMES,
+    TAIL_WORK,
+    metric_options,
+    step_metrics_core,
+    tail_oscillation_work,
+)
 
 __all__ = ["simulate_batch"]
 
@@ -63,7 +75,8 @@ def _batch_linear(
     lps: FloatArray, y0s: FloatArray, u0s: FloatArray, t: FloatArray, roff: FloatArray,
     noise: FloatArray,
     keep: bool, y_tr: FloatArray, u_tr: FloatArray, a_tr: FloatArray,
-    mopts: FloatArray, metrics: FloatArray, bad: IntArray, n_chunks: int,
+    mopts: FloatArray, metrics: FloatArray, tail_fraction: float, tail: FloatArray,
+    bad: IntArray, n_chunks: int,
 ) -> None:
     n = cps.shape[0]
     n_t = t.shape[0]
@@ -86,13 +99,15 @@ def _batch_linear(
         no_x = np.empty((0, nx_max))
         no_xop = np.zeros(nx_max)
         no_noise = np.empty(0)
+        tbuf = np.empty(N_TAIL + 1)
+        twork = np.empty((TAIL_WORK, 3))
         for i in range(lo, hi):
             nx = int(lps[i, 0])
             for j in range(nx):
                 x[j] = 0.0
             for j in range(cs.shape[0]):
                 cs[j] = cs0[i, j]
-            _fill_ref(rbuf, roff, y0s[i])
+            _fill_ref(rbuf, roff[min(i, roff.shape[0] - 1)], y0s[i])
             if keep:
                 yv = y_tr[i]
                 uv = u_tr[i]
@@ -101,16 +116,21 @@ def _batch_linear(
                 yv = ybuf
                 uv = ubuf_tr
                 av = abuf
-            nz = noise[i] if noise.shape[0] > 0 else no_noise
+            nz = noise[min(i, noise.shape[0] - 1)] if noise.shape[0] > 0 else no_noise
             bad[i] = run_linear(kind, cps[i], cs, du_rules, du_lims, a_rules, a_lims,
                                 lps[i], u0s[i], no_xop[:nx], rbuf, nz, y0s[i], x[:nx],
                                 xn[:nx], ring, yv, uv, av, no_x[:, :nx])
             if bad[i] >= 0:
                 for m in range(metrics.shape[1]):
                     metrics[i, m] = np.nan
+                for m in range(N_TAIL):
+                    tail[i, m] = np.nan
             else:
-                step_metrics_core(t, yv, uv, rbuf, y0s[i], rbuf[n_t - 1], mopts[0], mopts[1],
+                step_metrics_core(t, yv, uv, rbuf, yv[0], rbuf[n_t - 1], mopts[0], mopts[1],
                                   mopts[2], mopts[3], metrics[i])
+                tail_oscillation_work(t, yv, tail_fraction, tbuf, twork)
+                for m in range(N_TAIL):
+                    tail[i, m] = tbuf[m]
 
 
 @numba.njit(cache=True, parallel=True)
@@ -122,7 +142,8 @@ def _batch_nonlinear(
     n_subs: IntArray, ts: float, t: FloatArray, roff: FloatArray, noise: FloatArray,
     force: FloatArray,
     keep: bool, y_tr: FloatArray, u_tr: FloatArray, a_tr: FloatArray,
-    mopts: FloatArray, metrics: FloatArray, bad: IntArray, n_chunks: int,
+    mopts: FloatArray, metrics: FloatArray, tail_fraction: float, tail: FloatArray,
+    bad: IntArray, n_chunks: int,
 ) -> None:
     n = cps.shape[0]
     n_t = t.shape[0]
@@ -144,6 +165,8 @@ def _batch_nonlinear(
         cs = np.empty(cs0.shape[1])
         no_x = np.empty((0, nx))
         no_noise = np.empty(0)
+        tbuf = np.empty(N_TAIL + 1)
+        twork = np.empty((TAIL_WORK, 3))
         for i in range(lo, hi):
             for j in range(nx):
                 x[j] = x0s[i, j]
@@ -152,7 +175,7 @@ def _batch_nonlinear(
             for j in range(cs.shape[0]):
                 cs[j] = cs0[i, j]
             y0 = y0s[i]
-            _fill_ref(rbuf, roff, y0)
+            _fill_ref(rbuf, roff[min(i, roff.shape[0] - 1)], y0)
             if keep:
                 yv = y_tr[i]
                 uv = u_tr[i]
@@ -161,16 +184,61 @@ def _batch_nonlinear(
                 yv = ybuf
                 uv = ubuf_tr
                 av = abuf
-            nz = noise[i] if noise.shape[0] > 0 else no_noise
+            nz = noise[min(i, noise.shape[0] - 1)] if noise.shape[0] > 0 else no_noise
             bad[i] = run_nonlinear(kind, cps[i], cs, du_rules, du_lims, a_rules, a_lims,
                                    p, ts, ds[i], fs[i], n_subs[i], u0s[i], rbuf, nz, force,
                                    x, work, ring, yv, uv, av, no_x)
             if bad[i] >= 0:
                 for m in range(metrics.shape[1]):
                     metrics[i, m] = np.nan
+                for m in range(N_TAIL):
+                    tail[i, m] = np.nan
             else:
-                step_metrics_core(t, yv, uv, rbuf, y0, rbuf[n_t - 1], mopts[0], mopts[1],
+                step_metrics_core(t, yv, uv, rbuf, yv[0], rbuf[n_t - 1], mopts[0], mopts[1],
                                   mopts[2], mopts[3], metrics[i])
+                tail_oscillation_work(t, yv, tail_fraction, tbuf, twork)
+                for m in range(N_TAIL):
+                    tail[i, m] = tbuf[m]
+
+
+def _reference_rows(reference: Reference | ArrayLike, t: FloatArray) -> FloatArray:
+    """The reference offsets as rows (1 or runs, len(t)) [m]."""
+    if not hasattr(reference, "values"):
+        arr = np.asarray(reference, dtype=np.float64)
+        if arr.ndim == 2:
+            if arr.shape[1] != t.size or arr.shape[0] == 0:
+                raise InputError(
+                    f"a reference per run needs shape (runs, {t.size}), got {arr.shape}")
+            bad = ~np.isfinite(arr)
+            if np.any(bad):
+                i, k = np.argwhere(bad)[0]
+                raise InputError(
+                    f"reference must be finite, got {arr[i, k]!r} in row {i} at sample {k}")
+            return np.ascontiguousarray(arr)
+    return sample_reference(reference, t)[None, :]
+
+
+def _noise_rows(noise: ArrayLike | None, noise_std: float, t: FloatArray) -> FloatArray | None:
+    """Explicit measurement noise as rows (1 or runs, len(t)) [m], or None."""
+    if noise is None:
+        return None
+    if not (math.isfinite(noise_std) and noise_std >= 0.0):
+        raise ParameterError(f"noise_std must be finite and >= 0 m, got {noise_std!r}")
+    if noise_std > 0.0:
+        raise ParameterError(
+            f"give measurement noise either as noise (explicit samples) or as noise_std "
+            f"(drawn from rng), not both; got noise and noise_std = {noise_std!r}")
+    arr = np.asarray(noise, dtype=np.float64)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != t.size or arr.shape[0] == 0:
+        raise InputError(f"noise needs shape (runs, {t.size}) or ({t.size},), got "
+                         f"{np.shape(noise)}")
+    bad = ~np.isfinite(arr)
+    if np.any(bad):
+        i, k = np.argwhere(bad)[0]
+        raise InputError(f"noise must be finite, got {arr[i, k]!r} in row {i} at sample {k}")
+    return np.ascontiguousarray(arr)
 
 
 def _runs(counts: dict[str, int]) -> int:
@@ -193,10 +261,12 @@ def simulate_batch(
     disturbance: ArrayLike | None = None,
     noise_std: float = 0.0,
     rng: np.random.Generator | None = None,
+    noise: ArrayLike | None = None,
     keep_traces: bool = False,
     rise: tuple[float, float] = (0.1, 0.9),
     settle_band: float = 0.02,
     settle_band_2: float = 0.05,
+    tail_fraction: float = 0.25,
 ) -> BatchResult:
     """Run many closed loops in parallel and return their step metrics (and traces).
 
@@ -210,7 +280,8 @@ def simulate_batch(
     plant : LinearPlant, NonlinearPlant, or a sequence of one of them
         One plant for all runs, or one per run (all of the same kind).
     reference : Reference or array
-        Reference offset from each run's start position [m] (one value per sample if array).
+        Reference offset from each run's start position [m]: a reference object, one value
+        per sample (n_samples,) shared by all runs, or one row per run (runs, n_samples).
     duration : float
         Simulated time per run [s].
     delay : float or array (runs,)
@@ -221,29 +292,47 @@ def simulate_batch(
         Measurement noise standard deviation [m]; each run draws its own from ``rng``.
     rng : numpy.random.Generator, optional
         Noise source (required when ``noise_std > 0``).
+    noise : array (runs, n_samples) or (n_samples,), optional
+        Explicit measurement noise [m], added to the measured position as ``noise_std``'s
+        draws are: one row per run, or one row shared by all. Not with ``noise_std > 0``.
+        A row ``np.random.default_rng(seed).normal(0.0, std, size=n_samples)`` makes the run
+        equal, bit for bit, to ``simulate(..., noise_std=std,
+        rng=np.random.default_rng(seed))``.
     keep_traces : bool
         Keep y, u and α of every run (memory: 3 × runs × samples floats).
     rise : (float, float)
         Rise-time thresholds as fractions of the step [-].
     settle_band, settle_band_2 : float
         Settling bands as fractions of the step [-] (``settling_time``, ``settling_time_5``).
+    tail_fraction : float
+        Fraction of the run at its end over which ``BatchResult.tail`` measures the
+        oscillation of y (:func:`~fuzzyservo.sim.stepinfo.tail_oscillation_core`), in (0, 1]
+        [-].
 
     Returns
     -------
     BatchResult
-        ``metrics`` (runs, len(METRIC_NAMES)); diverged runs are flagged in ``diverged``
-        with NaN metrics rather than raised, so a search can penalise them.
+        ``metrics`` (runs, len(METRIC_NAMES)), measured as ``SimResult.metrics()`` measures a
+        single run (from the first measured sample y[0], noise and transducer rounding
+        included, to the last reference sample), and ``tail`` (runs, len(TAIL_NAMES)); diverged
+        runs are flagged in ``diverged`` with NaN metrics and tail rather than raised, so a
+        search can penalise them.
 
     Raises
     ------
     ParameterError
-        Bad gains, sample time, duration, delay, or plant list.
+        Bad gains, sample time, duration, delay, tail fraction or plant list; unequal run
+        counts (gain rows, plants, delays, reference rows, noise rows); ``noise`` together
+        with ``noise_std > 0``.
     InputError
-        A non-finite reference or disturbance.
+        A non-finite reference, noise or disturbance, or one of the wrong shape.
     """
     ts = float(controller.dt)
     t = time_grid(duration, ts)
-    roff = sample_reference(reference, t)
+    roff = _reference_rows(reference, t)
+    noise_rows = _noise_rows(noise, noise_std, t)
+    if not (math.isfinite(tail_fraction) and 0.0 < tail_fraction <= 1.0):
+        raise ParameterError(f"tail_fraction must be in (0, 1], got {tail_fraction!r}")
     g = (np.asarray(gains, dtype=np.float64) if gains is not None else None)
     if g is not None and g.ndim == 1:
         g = g[None, :]
@@ -255,7 +344,11 @@ def simulate_batch(
     if len(kinds) != 1:
         raise ParameterError("all plants of a batch must be of one kind (linear or nonlinear)")
     d_arr = np.asarray(delay, dtype=np.float64).reshape(-1)
-    n = _runs({"gain rows": cps.shape[0], "plants": len(plants), "delays": d_arr.size})
+    counts = {"gain rows": cps.shape[0], "plants": len(plants), "delays": d_arr.size,
+              "reference rows": roff.shape[0]}
+    if noise_rows is not None:
+        counts["noise rows"] = noise_rows.shape[0]
+    n = _runs(counts)
     delays = np.broadcast_to(d_arr, (n,)).copy()
     for dv in delays:
         check_delay(float(dv))
@@ -268,13 +361,14 @@ def simulate_batch(
     cs0 = np.vstack([controller.rest_states(cps[i:i + 1], y0s[i], u0s[i]) for i in range(n)]) \
         if len(set(y0s.tolist())) > 1 or len(set(u0s.tolist())) > 1 \
         else controller.rest_states(cps, float(y0s[0]), float(u0s[0]))
-    noise = make_noise(noise_std, rng, (n, t.size))
-    if noise.shape[0] == 0:
-        noise = np.empty((0, 0))
+    nz = make_noise(noise_std, rng, (n, t.size)) if noise_rows is None else noise_rows
+    if nz.shape[0] == 0:
+        nz = np.empty((0, 0))
     keep = bool(keep_traces)
     shape = (n, t.size) if keep else (0, t.size)
     y_tr, u_tr, a_tr = np.empty(shape), np.empty(shape), np.empty(shape)
     metrics = np.empty((n, N_METRICS))
+    tail = np.empty((n, N_TAIL))
     bad = np.empty(n, dtype=np.int64)
     mopts = np.array(metric_options(rise, settle_band, settle_band_2))
     tabs = controller.tables()
@@ -294,8 +388,9 @@ def simulate_batch(
         lps = np.zeros((n, width))
         for i, row in enumerate(rows):
             lps[i, :row.size] = row
-        _batch_linear(controller.kind, cps, cs0, *tabs, lps, y0s, u0s, t, roff, noise, keep,
-                      y_tr, u_tr, a_tr, mopts, metrics, bad, chunks)
+        _batch_linear(controller.kind, cps, cs0, *tabs, lps, y0s, u0s, t, roff, nz, keep,
+                      y_tr, u_tr, a_tr, mopts, metrics, float(tail_fraction), tail, bad,
+                      chunks)
     else:
         nl = [p for p in plants if isinstance(p, NonlinearPlant)]
         force = profile(disturbance, t, "disturbance")
@@ -306,8 +401,9 @@ def simulate_batch(
         fs = np.array([s[1] for s in split])
         n_subs = np.array([p.check_steps(ts, t.size) for p in nl], dtype=np.int64)
         _batch_nonlinear(controller.kind, cps, cs0, *tabs, pps, x0s, y0s, u0s, ds, fs, n_subs, ts,
-                         t, roff, noise, force, keep, y_tr, u_tr, a_tr, mopts, metrics, bad,
-                         chunks)
+                         t, roff, nz, force, keep, y_tr, u_tr, a_tr, mopts, metrics,
+                         float(tail_fraction), tail, bad, chunks)
     return BatchResult(
-        metrics=metrics, metric_names=METRIC_NAMES, diverged=bad >= 0, t=t, r=roff, y0=y0s,
+        metrics=metrics, metric_names=METRIC_NAMES, diverged=bad >= 0, t=t,
+        r=roff[0] if roff.shape[0] == 1 else roff, y0=y0s, tail=tail, tail_names=TAIL_NAMES,
         y=y_tr if keep else None, u=u_tr if keep else None, alpha=a_tr if keep else None)

@@ -11,7 +11,7 @@ import numpy as np
 
 from .._io import atomic_write
 from .._typing import BoolArray, FloatArray
-from .stepinfo import METRIC_NAMES, StepMetrics, metric_options, metrics_of
+from .stepinfo import METRIC_NAMES, TAIL_NAMES, StepMetrics, metric_options, metrics_of
 
 __all__ = ["BatchResult", "SimResult", "write_csv"]
 
@@ -132,10 +132,16 @@ class BatchResult:
     t : ndarray
         Sample times [s], shape (n,).
     r : ndarray
-        Reference offset from the start position [m], shape (n,); run i tracks
-        ``y0[i] + r``.
+        Reference offset from the start position [m], shape (n,) when shared (run i tracks
+        ``y0[i] + r``) or (runs, n) when each run has its own (``y0[i] + r[i]``).
     y0 : ndarray
         Start position of each run [m], shape (runs,).
+    tail : ndarray
+        Oscillation of y over the end of each run, shape (runs, len(tail_names)):
+        peak-to-peak [m], swings [-], period [s], sustain [-]
+        (:func:`~fuzzyservo.sim.stepinfo.tail_oscillation_core`); NaN for diverged runs.
+    tail_names : tuple of str
+        Column names of ``tail`` (``fuzzyservo.sim.stepinfo.TAIL_NAMES``).
     y, u, alpha : ndarray or None
         Traces, shape (runs, n), kept only with ``keep_traces=True`` [m, -, -].
     """
@@ -146,10 +152,17 @@ class BatchResult:
     t: FloatArray
     r: FloatArray
     y0: FloatArray
+    tail: FloatArray
+    tail_names: tuple[str, ...] = TAIL_NAMES
     y: FloatArray | None = None
     u: FloatArray | None = None
     alpha: FloatArray | None = None
 
     def metric(self, name: str) -> FloatArray:
-        """One metric for every run, by name (see ``metric_names``)."""
+        """One metric for every run, by name (``metric_names`` or ``tail_names``)."""
+        if name in self.tail_names:
+            return self.tail[:, self.tail_names.index(name)]
+        if name not in self.metric_names:
+            raise KeyError(f"no metric {name!r}; metrics: "
+                           f"{', '.join(self.metric_names + self.tail_names)}")
         return self.metrics[:, self.metric_names.index(name)]
