@@ -48,7 +48,9 @@ from ..registry import ControllerKind, build_plant, controller_kind, plant_kind
 from ..sim import DEFAULT_DELAY, Plant, Step, simulate_batch
 from ..sim.closed_loop import plant_limits, time_grid
 from ..sim.references import check_reference_samples
+from ..sim.result import BatchResult
 from ..sim.stepinfo import METRIC_NAMES, SETTLE_HOLD_FRACTION
+from .robust import RobustRecord, RobustSet, aggregate
 from .tuning import (
     DEFAULT_PATIENCE,
     DEFAULT_RTOL,
@@ -170,6 +172,12 @@ class TuningSetup:
         Fuzzy systems read from files, as (role, source, SHA-256 of the system's values)
         (recorded; the caller passes the systems themselves to :func:`tune_controller`);
         empty: the paper's.
+    robust : RobustRecord or None
+        A robust tuning: the set of plants it runs on and the statistic of the objective over
+        them (recorded; the caller passes the set itself to :func:`tune_controller`). The
+        plant, parameter set, overrides, start, step, duration, ts and delay above are then
+        the set's nominal ones (what ``fuzzyservo simulate --gains`` runs). None: the one
+        plant above.
     """
 
     controller: str
@@ -194,9 +202,13 @@ class TuningSetup:
     polish: bool = True
     bounds: GainBounds | None = None
     systems: tuple[tuple[str, str, str], ...] = ()
+    robust: RobustRecord | None = None
 
     def __post_init__(self) -> None:
         kind = controller_kind(self.controller)
+        if self.robust is not None and not isinstance(self.robust, RobustRecord):
+            raise ParameterError(f"TuningSetup.robust must be a RobustRecord or None, got "
+                                 f"{type(self.robust).__name__}")
         for item in self.systems:
             if len(item) != 3 or item[0] not in kind.systems:
                 raise ParameterError(f"systems entries are (role, source, sha256) with a role "
@@ -283,7 +295,8 @@ def setup_record(setup: TuningSetup) -> dict[str, Any]:
         "bounds": {n: [lo, hi, lg, zr] for n, lo, hi, lg, zr in
                    zip(b.names, b.lower, b.upper, b.log_scale, b.zero, strict=True)},
     } | ({"systems": {role: {"source": src, "sha256": digest}
-                      for role, src, digest in setup.systems}} if setup.systems else {})
+                      for role, src, digest in setup.systems}} if setup.systems else {}) \
+      | ({"robust": setup.robust.record()} if setup.robust is not None else {})
 
 
 #: The command-line option of each setting, for the message refusing a resume.
@@ -294,7 +307,7 @@ _OPTION = {"controller": "--controller", "plant": "--plant", "param_set": "--set
            "maxiter": "--maxiter", "constraints": "--max-overshoot/--max-sse/--max-u",
            "polish": "--no-polish", "patience": "--patience", "rtol": "--rtol",
            "spread": "--spread", "restarts": "--restarts",
-           "systems": "--du-system/--alpha-system"}
+           "systems": "--du-system/--alpha-system", "robust": "--robust/--statistic"}
 
 
 def params_digest(params: ServoParams) -> str:
@@ -361,21 +374,67 @@ def _evaluator(setup: TuningSetup, kind: ControllerKind, params: ServoParams,
         for i in range(0, rows.shape[0], per_batch):
             res = simulate_batch(ctl, rows[i:i + per_batch], plant=plant, reference=ref,
                                  duration=setup.duration, delay=setup.delay, keep_traces=True)
-            part = {name: res.metric(name) for name in METRIC_NAMES}
-            assert res.y is not None
-            t = res.t
-            tail = t >= t[0] + (1.0 - SETTLE_HOLD_FRACTION) * (t[-1] - t[0])
-            e = res.y0[:, None] + res.r[None, tail] - res.y[:, tail]
-            with np.errstate(invalid="ignore"):
-                part[FINAL_ERROR] = np.where(res.diverged, np.nan, np.max(np.abs(e), axis=1))
-            parts.append(part)
+            parts.append(_batch_metrics(res))
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     return evaluate
 
 
+def _batch_metrics(res: BatchResult) -> dict[str, FloatArray]:
+    """Every metric the tuner reads of a batch kept with its traces: ``METRIC_NAMES`` and
+    :data:`~fuzzyservo.analysis.tuning.FINAL_ERROR` (the largest |r - y| over the last
+    ``SETTLE_HOLD_FRACTION`` of the run; NaN for a diverged run)."""
+    part = {name: res.metric(name) for name in METRIC_NAMES}
+    assert res.y is not None
+    t = res.t
+    tail = t >= t[0] + (1.0 - SETTLE_HOLD_FRACTION) * (t[-1] - t[0])
+    e = res.y0[:, None] + res.r[None, tail] - res.y[:, tail]
+    with np.errstate(invalid="ignore"):
+        part[FINAL_ERROR] = np.where(res.diverged, np.nan, np.max(np.abs(e), axis=1))
+    return part
+
+
+def _robust_evaluator(setup: TuningSetup, kind: ControllerKind, robust: RobustSet,
+                      systems: Mapping[str, KernelSystem] | None) -> Evaluator:
+    """Candidates (n, k) -> metrics aggregated over the plants of ``robust``
+    (:func:`fuzzyservo.analysis.robust.aggregate`): n x plants closed loops per call, in
+    batches of at most :data:`TRACE_SAMPLES` samples of trace."""
+    assert setup.robust is not None
+    statistic = setup.robust.statistic
+    ctl = kind.template(dt=setup.ts, systems=systems)
+    ref = Step(setup.step)
+    m = len(robust)
+    n_samples = time_grid(setup.duration, setup.ts).size
+    per_batch = max(1, TRACE_SAMPLES // n_samples)
+    plants = list(robust.plants)
+
+    def evaluate(gains: FloatArray) -> dict[str, FloatArray]:
+        rows = full_gains(setup, gains, kind)
+        n_runs = rows.shape[0] * m
+        parts = []
+        failed = []
+        for lo in range(0, n_runs, per_batch):
+            run = np.arange(lo, min(n_runs, lo + per_batch))
+            j = run % m  # candidate-major: run = candidate * m + plant
+            res = simulate_batch(ctl, rows[run // m], plant=[plants[i] for i in j],
+                                 reference=ref, duration=setup.duration,
+                                 delay=robust.delays[j],
+                                 noise=None if robust.noise is None else robust.noise[j],
+                                 keep_traces=True, rise=robust.rise,
+                                 settle_band=robust.settle_band,
+                                 settle_band_2=robust.settle_band_2)
+            parts.append(_batch_metrics(res))
+            failed.append(res.diverged)
+        per_plant = {k: np.concatenate([p[k] for p in parts]).reshape(-1, m) for k in parts[0]}
+        return aggregate(per_plant, np.concatenate(failed).reshape(-1, m), setup.objective,
+                         statistic)
+
+    return evaluate
+
+
 def make_evaluator(setup: TuningSetup, params: ServoParams, *,
-                   systems: Mapping[str, KernelSystem] | None = None) -> Evaluator:
+                   systems: Mapping[str, KernelSystem] | None = None,
+                   robust: RobustSet | None = None) -> Evaluator:
     """Function mapping searched gains (n, k) to step metrics, one batched simulation per call.
 
     Parameters
@@ -386,6 +445,11 @@ def make_evaluator(setup: TuningSetup, params: ServoParams, *,
         Servo parameters (the set ``setup.param_set`` with ``setup.overrides`` applied).
     systems : mapping, optional
         Fuzzy systems by role (``du``, ``alpha``); default the paper's (Fig. 3).
+    robust : RobustSet, optional
+        The set of plants of a robust tuning (``setup.robust`` records it); then each
+        candidate runs on every plant and its metrics are aggregated over them
+        (:func:`fuzzyservo.analysis.robust.aggregate`: the objective's statistic, every
+        other metric's worst case).
 
     Returns
     -------
@@ -393,8 +457,26 @@ def make_evaluator(setup: TuningSetup, params: ServoParams, *,
         ``evaluate(gains)`` with gains (n, k) in the order of ``setup.search_bounds().names``
         returns ``{metric: array (n,)}`` for every name of ``METRIC_NAMES``; diverged runs
         have NaN metrics.
+
+    Raises
+    ------
+    ParameterError
+        ``robust`` given without ``setup.robust`` or the other way round, or a set of another
+        size than recorded.
     """
+    _check_robust(setup, robust)
+    if robust is not None:
+        return _robust_evaluator(setup, setup.kind, robust, systems)
     return _evaluator(setup, setup.kind, params, systems)
+
+
+def _check_robust(setup: TuningSetup, robust: RobustSet | None) -> None:
+    if (setup.robust is None) != (robust is None):
+        raise ParameterError("a robust tuning needs both TuningSetup.robust (its record) and "
+                             "the set of plants itself; a nominal tuning neither")
+    if robust is not None and setup.robust is not None and len(robust) != setup.robust.points:
+        raise ParameterError(f"the robust set has {len(robust)} plants, its record says "
+                             f"{setup.robust.points}")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -694,6 +776,17 @@ def _check_resume(resume: Checkpoint, setup: TuningSetup, params: ServoParams,
                              f"({_show(resume.setup['systems'])}), this run has the paper's: "
                              f"resume with the same --du-system/--alpha-system, or run without "
                              f"--resume")
+    theirs_robust = resume.setup.get("robust")
+    if (theirs_robust is None) != (setup.robust is None):
+        if theirs_robust is None:
+            was = "a tuning on one plant"
+        elif isinstance(theirs_robust, dict) and "spec" in theirs_robust:
+            was = f"a robust tuning (--robust {_show(theirs_robust['spec'])})"
+        else:
+            was = "a robust tuning"
+        now = "on one plant" if setup.robust is None else "a robust tuning"
+        raise ParameterError(f"the checkpoint was made by {was}, this run is {now}: resume "
+                             f"with the same options, or run without --resume")
     for key, value in mine.items():
         theirs = resume.setup.get(key, "(not recorded)")
         if theirs != value:
@@ -814,7 +907,8 @@ def _rise_match(setup: TuningSetup, evaluate: Evaluator, base: FloatArray, col: 
 def tune_controller(setup: TuningSetup, params: ServoParams, *,
                     systems: Mapping[str, KernelSystem] | None = None,
                     progress: Callable[[TuningProgress], None] | None = None,
-                    resume: Checkpoint | None = None) -> TunedGains:
+                    resume: Checkpoint | None = None,
+                    robust: RobustSet | None = None) -> TunedGains:
     """Tune ``setup.controller`` on the servo by step-response search.
 
     Parameters
@@ -831,6 +925,14 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
     resume : Checkpoint, optional
         Continue an interrupted run from its last checkpoint: the result (gains, metrics,
         objective, run and generation counts) equals the uninterrupted run's, bit for bit.
+    robust : RobustSet, optional
+        Tune on this set of plants instead of the one of ``setup`` (which ``setup.robust``
+        records): every candidate runs on every plant, the objective is
+        ``setup.robust.statistic`` over them and the constraints must hold on each
+        (:func:`fuzzyservo.analysis.robust.aggregate`). The result's metrics are those
+        aggregates: the worst case of each metric over the set, the objective's statistic,
+        and the objective's worst case (``itae_worst``). ``params`` are then the set's
+        nominal parameters.
 
     Returns
     -------
@@ -840,7 +942,8 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
     ------
     ParameterError
         A missing fuzzy system, or a checkpoint of another setting (named), other
-        parameters, another fuzzyservo version, or of the wrong shape.
+        parameters, another fuzzyservo version, or of the wrong shape; ``robust`` without
+        ``setup.robust`` or the other way round.
     InputError
         The step leaves the stroke, or the transducer resolution is coarser than the step
         (:func:`check_run`).
@@ -858,6 +961,7 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
     t0 = time.perf_counter()
     kind = setup.kind
     bounds = setup.search_bounds()
+    _check_robust(setup, robust)
     if resume is not None:
         _check_resume(resume, setup, params, bounds)
     check_run(setup, params)
@@ -907,10 +1011,15 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
                           generations=d.generations, converged=d.converged,
                           at_bounds=bounds.at_bounds(g[0]), restart_spread=d.restart_spread)
 
+    def evaluator_of(k: ControllerKind) -> Evaluator:
+        if robust is not None:
+            return _robust_evaluator(setup, k, robust, systems)
+        return _evaluator(setup, k, params, systems)
+
     stages: list[StageRecord] = []
     if kind.tuning == "search":
         kind_of = {"search": kind}
-        evaluate = _evaluator(setup, kind, params, systems)
+        evaluate = evaluator_of(kind)
         _, rec = (replay("search", evaluate) if "search" in done else
                   search("search", evaluate, bounds, setup.popsize, lambda r: None))
         stages.append(rec)
@@ -922,8 +1031,8 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
                                  f"same gains")
         kind_of = {first.name: first, "rise": kind, "refine": kind}
         col = bounds.names.index(kind.rise_gain)
-        ev1 = _evaluator(setup, first, params, systems)
-        ev = _evaluator(setup, kind, params, systems)
+        ev1 = evaluator_of(first)
+        ev = evaluator_of(kind)
         # step 1: the stage kind (the fuzzy PI, alpha = 1)
         g1, rec1 = (replay(first.name, ev1) if first.name in done else
                     search(first.name, ev1, bounds, setup.popsize, lambda r: None))

@@ -14,7 +14,11 @@ That is a complete file a user may write by hand. A file ``fuzzyservo tune`` wri
 tuning record: the setup that produced the gains (``[tuning]``: plant, parameter set and
 overrides, start, step, duration, sample time, delay, objective, constraints, seed,
 population, bounds), the step metrics of the tuned run (``[metrics]``), each stage, the
-fuzzyservo version and the date (``[result]``). :func:`read_gains_file` reads either;
+fuzzyservo version and the date (``[result]``). A robust tuning (``tune --robust``) also
+records its set of plants (``[tuning.robust]``: the sweep spec, the SHA-256 of the set, the
+number of plants and the statistic); its ``[tuning]`` plant is the set's nominal one and its
+``[metrics]`` are aggregates over the set (:func:`fuzzyservo.analysis.robust.aggregate`).
+:func:`read_gains_file` reads either;
 :func:`read_gains_toml` reads a tuning record and names the missing or mistyped key of a bad
 one; :func:`load_controller` builds the controller of a file through the registry, at the
 file's sample time unless told otherwise (the fuzzy PIs' ``kde`` is per sample).
@@ -32,6 +36,7 @@ import tomli_w
 
 from .._io import read_text, write_text_atomic
 from ..analysis.autotune import StageRecord, TunedGains, TuningSetup, setup_record
+from ..analysis.robust import RobustRecord
 from ..analysis.tuning import GainBounds, TuningConstraints
 from ..control.fuzzy_pi import KernelSystem
 from ..errors import InputError, ParameterError
@@ -177,6 +182,14 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
                                  f"source and sha256")
             systems.append((str(role), rd.get(entry, "source", str, sw),
                             rd.get(entry, "sha256", str, sw)))
+        robust = None
+        if "robust" in tu:
+            rt = rd.get(tu, "robust", dict, w)
+            rw = "tuning.robust."
+            robust = RobustRecord(source=rd.get(rt, "spec", str, rw),
+                                  digest=rd.get(rt, "set_sha256", str, rw),
+                                  points=rd.get(rt, "points", int, rw),
+                                  statistic=rd.get(rt, "statistic", str, rw))
         setup = TuningSetup(
             controller=controller, plant=rd.get(tu, "plant", str, w),
             param_set=rd.get(tu, "param_set", str, w),
@@ -188,7 +201,8 @@ def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
             constraints=constraints, seed=rd.get(tu, "seed", int, w),
             popsize=rd.get(tu, "popsize", int, w), maxiter=rd.get(tu, "maxiter", int, w),
             pid_n=rd.get(tu, "pid_n", float, w), polish=rd.get(tu, "polish", bool, w),
-            bounds=bounds, systems=tuple(systems), **({"restarts": 1} if layout == 1 else {
+            bounds=bounds, systems=tuple(systems), robust=robust,
+            **({"restarts": 1} if layout == 1 else {
                 "patience": rd.get(tu, "patience", int, w),
                 "rtol": rd.get(tu, "rtol", float, w),
                 "spread": rd.get(tu, "spread", float, w),
