@@ -44,10 +44,12 @@ OPTION_FLAGS: dict[str, str] = {
 }
 
 
-def add_plant_choice(parser: argparse.ArgumentParser | Any, default: str | None) -> None:
-    """``--plant NAME``, one of the registry's plants (``default`` None: decided later)."""
+def add_plant_choice(parser: argparse.ArgumentParser | Any, default: str | None, *,
+                     shown: str | None = None) -> None:
+    """``--plant NAME``, one of the registry's plants (``default`` None: decided later, as
+    ``shown`` says in the help; default "the gains file's, else nonlinear")."""
     names = plant_names()
-    shown = default or "the gains file's, else nonlinear"
+    shown = default or shown or "the gains file's, else nonlinear"
     parser.add_argument("--plant", choices=names, default=default, metavar="NAME",
                         help=f"plant model: {', '.join(names)} (default {shown}; "
                              "docs/model.md, 'Plant models')")

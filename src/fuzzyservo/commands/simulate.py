@@ -233,6 +233,9 @@ def _settings(args: argparse.Namespace, tuned: TunedGains | None, ts: float,
     notes = []
     if from_file:
         notes.append(f"{path}: as tuned, " + ", ".join(from_file))
+    if s is not None and s.robust is not None:
+        notes.append(f"{path} was tuned on {s.robust.points} plants of {s.robust.source} "
+                     f"({s.robust.statistic} {s.objective}); this run is their nominal plant")
     if s is not None:
         differs = []
         if plant != s.plant:

@@ -5,6 +5,19 @@
 [--duration 10] [--ts 0.001] [--delay S|hose] --out gains.toml [--resume]``: any controller and
 plant of the registry; what is searched is the controller's registry entry.
 
+Robust tuning: ``fuzzyservo tune --robust SPEC.toml --controller NAME [--statistic
+worst|mean|pNN] [--objective itae] [--max-overshoot 10] ... --out gains.toml [--resume]``
+tunes one design on every point of a sweep spec (a fixed set of sampled plants, delays and
+sensor noise; at most :data:`~fuzzyservo.sweep.robust.MAX_ROBUST_POINTS`): the objective is the
+statistic over the set (default ``worst``, the largest), and every constraint must hold on
+every plant. The plant kind, parameter set and overrides, start, step, duration, sample time
+and delay are the spec's (``--plant``, ``--set``, ``--params``, ``--param``, ``--start``,
+``--step``, ``--duration``, ``--ts`` and ``--delay`` are refused); its ``[[controllers]]`` are
+not tuned. The gains file records the set (spec path, SHA-256 of the set, points, statistic)
+and the spec's nominal plant, which ``fuzzyservo simulate --gains`` runs; its metrics are the
+worst case over the set (the objective: the statistic, and ``<objective>_worst``).
+docs/sweep.md, "Robust tuning".
+
 A progress bar per search stage goes to stderr. Each search stops when it has converged
 (``--patience``, ``--rtol``) or at ``--maxiter`` generations (then a warning says it did not
 converge); a gain that ends on a bound of its box is named in a warning. Ctrl-C writes the
@@ -42,12 +55,19 @@ from ..analysis.autotune import (
     TuningSetup,
     tune_controller,
 )
+from ..analysis.robust import RobustSet, parse_statistic, worst_name
 from ..analysis.tuning import OBJECTIVES, StopRule, TuningConstraints
 from ..errors import ParameterError
 from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gains_toml
 from ..plant import ServoParams
 from ..registry import controller_names
-from ._plantargs import add_plant_arguments, overrides_from_args, params_from_args, set_name
+from ._plantargs import (
+    add_plant_arguments,
+    overrides_from_args,
+    params_from_args,
+    params_given,
+    set_name,
+)
 from ._runargs import (
     add_delay_argument,
     add_plant_choice,
@@ -61,6 +81,11 @@ __all__ = ["register", "run"]
 
 DEFAULT_STOP = StopRule()
 
+#: Defaults of the run options a robust tuning takes from its spec instead (None on the
+#: command line, so that one given with --robust is refused).
+RUN_DEFAULTS: dict[str, Any] = {"plant": "linear", "step": 0.1, "duration": 10.0,
+                                "ts": 0.001, "start": 0.5}
+
 
 def register(subparsers: Any) -> None:
     """Add the ``tune`` subcommand."""
@@ -69,11 +94,14 @@ def register(subparsers: Any) -> None:
         description="Tune the gains of a controller (P, PI, PID, 2-DOF PID, fuzzy PI, "
                     "self-tuning fuzzy PI) on a plant model by differential evolution over "
                     "the batched simulator, and write them to a gains file (TOML) that "
-                    "'fuzzyservo simulate --gains FILE' runs.")
+                    "'fuzzyservo simulate --gains FILE' runs. With --robust SPEC.toml, tune "
+                    "one design on every point of a sweep spec: a statistic of the objective "
+                    "over the set, the constraints on every plant (docs/sweep.md, 'Robust "
+                    "tuning').")
     names = controller_names()
     p.add_argument("--controller", required=True, choices=names, metavar="NAME",
                    help=f"controller: {', '.join(names)}")
-    add_plant_choice(p, "linear")
+    add_plant_choice(p, None, shown="linear")
     p.add_argument("--objective", default="itae", choices=OBJECTIVES, metavar="NAME",
                    help=f"objective: {', '.join(OBJECTIVES)} (default itae)")
     p.add_argument("--max-overshoot", type=float, default=10.0, metavar="PERCENT",
@@ -102,16 +130,26 @@ def register(subparsers: Any) -> None:
     p.add_argument("--spread", type=float, default=DEFAULT_STOP.spread, metavar="S",
                    help=f"stopping rule: the population's median cost within S (relative) of "
                         f"the best (default {DEFAULT_STOP.spread:g})")
-    p.add_argument("--step", type=float, default=0.1, metavar="M",
+    p.add_argument("--step", type=float, default=None, metavar="M",
                    help="reference step [m] (default 0.1)")
-    p.add_argument("--duration", type=float, default=10.0, metavar="S",
+    p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated time per run [s], at least 10 samples and at most "
                         "10 million (default 10)")
-    p.add_argument("--ts", type=float, default=0.001, metavar="S",
+    p.add_argument("--ts", type=float, default=None, metavar="S",
                    help="controller sample period [s] (default 0.001)")
     add_delay_argument(p)
-    p.add_argument("--start", type=float, default=0.5, metavar="FRACTION",
+    p.add_argument("--start", type=float, default=None, metavar="FRACTION",
                    help="start position as a fraction of the stroke (default 0.5)")
+    p.add_argument("--robust", type=Path, default=None, metavar="SPEC.toml",
+                   help="robust tuning: tune on every point of this sweep spec (at most "
+                        "256; plant, parameters, step, duration, ts, start and delay are the "
+                        "spec's, so --plant, --set, --params, --param, --step, --duration, "
+                        "--ts, --start and --delay are refused; its [[controllers]] are not "
+                        "tuned)")
+    p.add_argument("--statistic", default=None, metavar="worst|mean|pNN",
+                   help="with --robust: the statistic of the objective over the set that is "
+                        "minimised: worst (the largest; default), mean, or a percentile such "
+                        "as p90; the constraints hold on every plant whatever it is")
     p.add_argument("--out", type=Path, required=True, metavar="FILE.toml",
                    help="gains file to write (checked before the search: its folder must "
                         "exist, and it must not be the --params file)")
@@ -125,17 +163,23 @@ def register(subparsers: Any) -> None:
     p.set_defaults(handler=run)
 
 
+def _given(args: argparse.Namespace, name: str) -> Any:
+    """The value of run option ``name`` given, else its default (:data:`RUN_DEFAULTS`)."""
+    value = getattr(args, name)
+    return RUN_DEFAULTS[name] if value is None else value
+
+
 def _setup(args: argparse.Namespace, params: ServoParams,
            systems: dict[str, Any] | None = None) -> TuningSetup:
     for name, value in (("--max-overshoot", args.max_overshoot), ("--max-sse", args.max_sse),
                         ("--max-u", args.max_u)):
         if value is not None and not (math.isfinite(value) and value >= 0.0):
             raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
-    overrides = tuple(overrides_from_args(args).items())
+    overrides = tuple(overrides_from_args(args).items()) if args.robust is None else ()
     return TuningSetup(
-        controller=args.controller, plant=args.plant, param_set=set_name(args),
-        overrides=overrides, start=args.start, step=args.step, duration=args.duration,
-        ts=args.ts,
+        controller=args.controller, plant=_given(args, "plant"), param_set=set_name(args),
+        overrides=overrides, start=_given(args, "start"), step=_given(args, "step"),
+        duration=_given(args, "duration"), ts=_given(args, "ts"),
         delay=delay_from_args(args.delay, params),
         objective=args.objective,
         constraints=TuningConstraints(max_overshoot=args.max_overshoot,
@@ -159,6 +203,7 @@ class _Progress:
 
     def __call__(self, p: TuningProgress) -> None:
         self.latest = p.checkpoint
+        runs = p.n_evaluations * (1 if self.setup.robust is None else self.setup.robust.points)
         if self.quiet:
             return
         label = p.stage + (f" {p.restart + 1}/{p.restarts}" if p.restarts > 1 else "")
@@ -173,12 +218,12 @@ class _Progress:
                                 desc=f"tune {label}", unit="gen", file=sys.stderr,
                                 leave=True)
         if self.bar is not None:
-            self.bar.set_postfix(best=f"{p.best_cost:.6g}", runs=p.n_evaluations)
+            self.bar.set_postfix(best=f"{p.best_cost:.6g}", runs=runs)
             self.bar.n = p.generation
             self.bar.refresh()
         elif p.generation % 10 == 0 or p.generation == 1:
             print(f"tune {label}: generation {p.generation}/{p.max_generations}, "
-                  f"best cost {p.best_cost:.4g}, {p.n_evaluations} runs", file=sys.stderr,
+                  f"best cost {p.best_cost:.4g}, {runs} runs", file=sys.stderr,
                   flush=True)
 
     def close(self) -> None:
@@ -187,19 +232,60 @@ class _Progress:
             self.bar = None
 
 
+#: Options a robust tuning takes from its spec, by the attribute they set.
+_FROM_SPEC = (("plant", "--plant"), ("step", "--step"), ("duration", "--duration"),
+              ("ts", "--ts"), ("start", "--start"), ("delay", "--delay"))
+
+
+def _robust(args: argparse.Namespace, systems: dict[str, Any] | None
+            ) -> tuple[TuningSetup, ServoParams, RobustSet]:
+    """The setup, nominal parameters and set of plants of ``--robust SPEC``.
+
+    Raises
+    ------
+    ParameterError
+        An option the spec gives was given too (all of them named, in one line), a bad
+        statistic, a spec of too many points or with an invalid point.
+    """
+    from ..sweep.robust import robust_set, robust_setup
+    from ..sweep.spec import load_spec
+
+    given = [flag for name, flag in _FROM_SPEC if getattr(args, name) is not None]
+    if params_given(args):
+        given += [flag for flag, v in (("--set", args.param_set), ("--params", args.param_file),
+                                       ("--param", args.param_overrides)) if v]
+    if given:
+        raise ParameterError(f"--robust takes the plant, parameters, step, duration, ts, "
+                             f"start and delay from {str(args.robust)!r}: drop "
+                             f"{', '.join(given)}")
+    statistic = parse_statistic("worst" if args.statistic is None else args.statistic)
+    spec = load_spec(args.robust)
+    rset, record = robust_set(spec, source=str(args.robust), statistic=statistic)
+    params = spec.nominal
+    return robust_setup(spec, _setup(args, params, systems), record), params, rset
+
+
 def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo tune``."""
-    out: Path = check_output_path(args.out, option="--out", inputs=(args.param_file,))
-    params = params_from_args(args)
+    inputs = tuple(p for p in (args.param_file, args.robust) if p is not None)
+    out: Path = check_output_path(args.out, option="--out", inputs=inputs)
     systems = systems_from_args(args, args.controller)
-    setup = _setup(args, params, systems)
+    rset: RobustSet | None = None
+    if args.robust is not None:
+        setup, params, rset = _robust(args, systems)
+    else:
+        if args.statistic is not None:
+            raise ParameterError("--statistic applies to a robust tuning: add --robust "
+                                 "SPEC.toml")
+        params = params_from_args(args)
+        setup = _setup(args, params, systems)
     ckpt_file = checkpoint_path(out)
     resume = load_checkpoint(ckpt_file) if args.resume else None
     progress = _Progress(setup, args.quiet)
     try:
         try:
             tuned = tune_controller(setup, params, progress=progress, resume=resume,
-                                    systems=systems)
+                                    systems=systems, robust=rset)
         except ParameterError as exc:
             if resume is not None and str(exc).startswith("the checkpoint"):
                 raise ParameterError(f"{str(ckpt_file)!r}: {exc}") from None
@@ -224,12 +310,24 @@ def run(args: argparse.Namespace) -> int:
     m = tuned.metrics
     what = tuned.structure
     named = tuned.controller + (f" (a {what} design)" if what in ("P", "PI", "PD") else "")
-    print(f"{named} on the {setup.plant} plant: {gains}")
-    print(f"{setup.objective}={tuned.objective_value:.6g}, overshoot={m['overshoot']:.3g} %, "
+    if setup.robust is None:
+        print(f"{named} on the {setup.plant} plant: {gains}")
+        objective = f"{setup.objective}={tuned.objective_value:.6g}"
+        runs = f"{tuned.n_evaluations} runs"
+    else:
+        runs = (f"{tuned.n_evaluations} candidates x {setup.robust.points} plants = "
+                f"{tuned.n_evaluations * setup.robust.points} runs")
+        print(f"{named} on {setup.robust.points} {setup.plant} plants of {setup.robust.source}"
+              f": {gains}")
+        print("worst case over the set: ", end="")
+        objective = f"{setup.objective} {setup.robust.statistic}={tuned.objective_value:.6g}"
+        if setup.robust.statistic != "worst":
+            objective += f", {setup.objective} worst={m[worst_name(setup.objective)]:.6g}"
+    print(f"{objective}, overshoot={m['overshoot']:.3g} %, "
           f"rise_time={m['rise_time']:.4g} s, settling_time={m['settling_time']:.4g} s, "
           f"u_max={m['u_max']:.3g}, feasible={'yes' if tuned.feasible else 'no'}, "
           f"converged={'yes' if tuned.converged else 'no'}, {tuned.generations} generations, "
-          f"{tuned.n_evaluations} runs in {tuned.elapsed:.1f} s -> {out}")
+          f"{runs} in {tuned.elapsed:.1f} s -> {out}")
     box = setup.search_bounds()
     for name, side in tuned.at_bounds.items():
         i = box.names.index(name)
@@ -250,7 +348,9 @@ def run(args: argparse.Namespace) -> int:
               f"by at most {setup.rtol:g} over {setup.patience} generations); raise "
               f"--maxiter", file=sys.stderr)
     if not tuned.feasible:
-        print(f"fuzzyservo: no gains found that meet the constraints; the best found are "
-              f"written to {out} (loosen a constraint or widen the search)", file=sys.stderr)
+        every = " on every plant of the set" if setup.robust is not None else ""
+        print(f"fuzzyservo: no gains found that meet the constraints{every}; the best found "
+              f"are written to {out} (loosen a constraint or widen the search)",
+              file=sys.stderr)
         return 1
     return 0

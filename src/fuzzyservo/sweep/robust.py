@@ -1,0 +1,117 @@
+"""The set of plants of a robust tuning, from a sweep spec (``fuzzyservo tune --robust``).
+
+A robust tuning (:mod:`fuzzyservo.analysis.robust`) runs every candidate on a fixed set of
+plants. Here that set is every point of a sweep spec: the plants, delays and sensor noise a
+sweep of the spec runs (:class:`fuzzyservo.sweep.run.PointRuns`, so each plant of the set is
+the very run ``fuzzyservo sweep`` makes of that point), and the spec's nominal plant, step,
+duration, sample time, start and delay become the tuning's recorded setup (what
+``fuzzyservo simulate --gains`` runs). The spec's ``[[controllers]]`` are not tuned; they are
+what a sweep of the same spec compares.
+
+Limits: at most :data:`MAX_ROBUST_POINTS` points (each generation runs popsize x gains x
+points closed loops); the reference must be one step from t = 0 (the tuner's objective and
+constraints are normalised by it), so ``amplitude`` may not vary; every point must be valid.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import replace
+
+from ..analysis.autotune import TuningSetup
+from ..analysis.robust import RobustRecord, RobustSet, parse_statistic
+from ..errors import ParameterError
+from ..sim.closed_loop import time_grid
+from ..sim.references import Step, parse_reference
+from .run import PointRuns
+from .sampling import points
+from .spec import SweepSpec
+
+__all__ = ["MAX_ROBUST_POINTS", "robust_set", "robust_setup", "set_digest"]
+
+#: Most points a robust set may have: a generation of a self-tuning fuzzy PI search at the
+#: default population (30 candidates) is then 7680 closed loops.
+MAX_ROBUST_POINTS = 256
+
+#: Keys of the spec's canonical record that do not change a plant of the set (its title, its
+#: chunking, the controllers a sweep of it compares).
+_NOT_THE_SET = ("name", "chunk", "controllers")
+
+
+def set_digest(spec: SweepSpec) -> str:
+    """SHA-256 of everything that defines the spec's set of plants: its canonical record
+    (:meth:`SweepSpec.canonical`) without its title, chunk size and controllers, so that
+    adding a design to compare to the spec keeps the record of a design tuned on it true."""
+    rec = {k: v for k, v in spec.canonical().items() if k not in _NOT_THE_SET}
+    text = json.dumps(rec, sort_keys=True, allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _step(spec: SweepSpec) -> float:
+    ref = parse_reference(spec.reference)
+    if not isinstance(ref, Step) or ref.time != 0.0:
+        raise ParameterError(f"a robust tuning needs a step reference from t = 0 "
+                             f"(reference.spec = \"step:0.1\"), the spec has "
+                             f"{spec.reference!r}")
+    if any(v.name == "amplitude" for v in spec.vary):
+        raise ParameterError("a robust tuning runs one step on every plant (its objective and "
+                             "constraints are normalised by it): the spec must not vary "
+                             "amplitude")
+    return float(ref.amplitude)
+
+
+def robust_set(spec: SweepSpec, *, source: str, statistic: str
+               ) -> tuple[RobustSet, RobustRecord]:
+    """Every point of ``spec`` as a robust set, and its record.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        The sweep spec whose points are the set.
+    source : str
+        Where the spec came from (recorded; its path as given).
+    statistic : str
+        ``mean``, ``worst`` or ``pNN`` (:func:`fuzzyservo.analysis.robust.parse_statistic`).
+
+    Returns
+    -------
+    (RobustSet, RobustRecord)
+
+    Raises
+    ------
+    ParameterError
+        More than :data:`MAX_ROBUST_POINTS` points, a reference that is not a step from
+        t = 0 or a varied amplitude, an invalid point (named, with the reason), a bad
+        statistic.
+    """
+    stat = parse_statistic(statistic)
+    n = spec.n_points
+    if n > MAX_ROBUST_POINTS:
+        raise ParameterError(f"the robust set has {n} points (grid cells x samples); at most "
+                             f"{MAX_ROBUST_POINTS} are allowed, since every generation runs "
+                             f"each candidate on every point: lower samples or the grid")
+    _step(spec)
+    pts = points(spec, 0, n)
+    t = time_grid(spec.duration, spec.ts)
+    runs = PointRuns(spec, pts, t)
+    for j, err in enumerate(runs.error):
+        if err is not None:
+            raise ParameterError(f"point {int(pts.index[j])} of the robust set is invalid "
+                                 f"({err}); every point must run")
+    mo = dict(spec.metric_options)
+    rset = RobustSet(plants=tuple(runs.plants), delays=runs.delay, noise=runs.noise,
+                     labels=tuple(int(i) for i in pts.index),
+                     rise=(mo.get("rise_low", 0.1), mo.get("rise_high", 0.9)),
+                     settle_band=mo.get("settle_band", 0.02),
+                     settle_band_2=mo.get("settle_band_2", 0.05))
+    record = RobustRecord(source=source, digest=set_digest(spec), points=n, statistic=stat)
+    return rset, record
+
+
+def robust_setup(spec: SweepSpec, setup: TuningSetup, record: RobustRecord) -> TuningSetup:
+    """``setup`` with the spec's nominal plant, parameter set and overrides, start, step,
+    duration, sample time and delay, and the robust set's ``record``."""
+    return replace(setup, plant=spec.plant, param_set=spec.param_set,
+                   overrides=tuple(spec.overrides), start=spec.start, step=_step(spec),
+                   duration=spec.duration, ts=spec.ts, delay=spec.delay, robust=record)
