@@ -103,3 +103,14 @@ def test_digest_names_everything_the_results_depend_on() -> None:
                    {"controllers": [{"controller": "pi", "gains": {"kp": 1.0, "ki": 0.6}}]},
                    {"vary": [{"name": "delay", "grid": [0.0, 0.01]}]}):
         assert parse_spec(_doc(**change)).digest != base.digest
+
+
+def test_manifest_record_rebuilds_the_same_spec() -> None:
+    from fuzzyservo.sweep import SweepSpec
+
+    spec = load_spec(EXAMPLE)
+    again = SweepSpec.from_canonical(spec.canonical())
+    assert again.digest == spec.digest
+    assert again.n_points == spec.n_points
+    assert [c.build(spec.ts).pack().tolist() for c in again.controllers] == \
+        [c.build(spec.ts).pack().tolist() for c in spec.controllers]

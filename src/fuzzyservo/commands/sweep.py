@@ -50,6 +50,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--resume", action="store_true",
                    help="continue the sweep in --out: skip its finished chunks")
     g = p.add_mutually_exclusive_group()
+    g.add_argument("--processes", type=int, default=None, metavar="N",
+                   help="without Dask: N local worker processes (default one per core; 1 runs "
+                        "in this process on numba's threads)")
     g.add_argument("--workers", type=int, default=None, metavar="N",
                    help="run on a local Dask cluster of N single-threaded worker processes")
     g.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -82,19 +85,22 @@ def _run_sweep(args: argparse.Namespace) -> int:
     if args.spec is None or args.out is None:
         raise InputError("sweep needs SPEC.toml and --out DIR (fuzzyservo sweep --example "
                          "prints a spec to start from)")
-    if args.workers is not None and not 1 <= args.workers <= 1024:
-        raise InputError(f"--workers must be an integer in [1, 1024], got {args.workers}")
     from .._io import read_text
     from ..sweep import load_spec, read_table, run_sweep
 
     spec = load_spec(args.spec)
     text = read_text(args.spec, "sweep spec")
-    print(f"sweep {spec.name!r}: {spec.n_points} points x {len(spec.controllers)} controllers "
-          f"= {spec.n_runs} runs in {spec.n_chunks} chunks -> {args.out}", file=sys.stderr)
+
+    def banner(man: Any, todo: int) -> None:
+        print(f"sweep {spec.name!r}: {spec.n_points} points x {len(spec.controllers)} "
+              f"controllers = {spec.n_runs} runs in {spec.n_chunks} chunks -> {args.out}"
+              + (f" ({todo} to run)" if todo < spec.n_chunks else ""), file=sys.stderr)
+
     t0 = time.perf_counter()
     try:
-        man = run_sweep(spec, args.out, resume=args.resume, workers=args.workers,
-                        scheduler=args.scheduler, progress=args.progress, spec_text=text)
+        run_sweep(spec, args.out, resume=args.resume, processes=args.processes,
+                        workers=args.workers, scheduler=args.scheduler,
+                        progress=args.progress, spec_text=text, on_start=banner)
     except KeyboardInterrupt:
         print(f"fuzzyservo: note: finished chunks are kept in {str(args.out)!r}; continue with "
               f"fuzzyservo sweep {args.spec} --out {args.out} --resume", file=sys.stderr)
@@ -111,7 +117,6 @@ def _run_sweep(args: argparse.Namespace) -> int:
         total = sum(c.values()) or 1
         shown = ", ".join(f"{k} {100.0 * v / total:.1f} %" for k, v in c.most_common())
         print(f"  {e.label}: {shown}")
-    del man
     return 0
 
 

@@ -202,28 +202,30 @@ def read_table(out: str | Path, columns: list[str] | None = None) -> Any:
 
 def table_digest(table: Any) -> str:
     """SHA-256 of a sweep table sorted by (point, controller): equal for equal rows, whatever
-    the chunking, the order of writing, or the executor."""
+    the chunking, the order of writing, or the executor (NaN equals NaN; floats by their
+    bits)."""
+    import numpy as np
+    import pyarrow as pa
     import pyarrow.compute as pc
 
-    idx = pc.sort_indices(table, sort_keys=[("point", "ascending"),
+    cols = {}
+    for name in table.column_names:
+        col = table.column(name)
+        if pa.types.is_dictionary(col.type):
+            col = col.cast(col.type.value_type)
+        cols[name] = col
+    plain = pa.table(cols)
+    idx = pc.sort_indices(plain, sort_keys=[("point", "ascending"),
                                             ("controller", "ascending")])
-    t = table.take(idx)
+    t = plain.take(idx)
     h = hashlib.sha256()
     for name in sorted(t.column_names):
         col = t.column(name).combine_chunks()
-        h.update(name.encode())
-        h.update(str(col.type).encode())
-        if hasattr(col, "dictionary_decode"):
-            col = col.dictionary_decode()
-        for buf in col.to_pylist() if str(col.type) in ("string", "large_string") else ():
-            h.update(repr(buf).encode())
-        if str(col.type) not in ("string", "large_string"):
-            import numpy as np
-
-            arr = col.to_numpy(zero_copy_only=False)
-            if arr.dtype == object:
-                h.update(repr(arr.tolist()).encode())
-            else:
-                h.update(np.ascontiguousarray(arr).tobytes())
-                h.update(col.is_null().to_numpy(zero_copy_only=False).tobytes())
+        h.update(f"{name}:{col.type}:".encode())
+        if pa.types.is_string(col.type) or pa.types.is_large_string(col.type):
+            for v in col.to_pylist():
+                h.update(b"\x00" if v is None else v.encode() + b"\x01")
+        else:
+            h.update(np.ascontiguousarray(col.to_numpy(zero_copy_only=False)).tobytes())
+            h.update(np.asarray(col.is_null().to_numpy(zero_copy_only=False)).tobytes())
     return h.hexdigest()

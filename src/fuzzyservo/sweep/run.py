@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
@@ -151,7 +152,8 @@ class PointRuns:
                 if amp is not None:
                     a = float(amp[j])
                     if a not in checked_refs:
-                        r_j = Step(a, ref.time)  # type: ignore[union-attr]
+                        assert isinstance(ref, Step)
+                        r_j = Step(a, ref.time)
                         check_reference(r_j, ts=spec.ts, duration=spec.duration)
                         from ..sim.references import sample_reference
 
@@ -180,10 +182,10 @@ class PointRuns:
         if np.any(noisy):
             idx = np.flatnonzero(self.valid)
             self.noise = np.zeros((idx.size, n))
-            for k, j in enumerate(idx):
-                if noisy[j]:
-                    rng = np.random.default_rng(int(pts.noise_seed[j]))
-                    self.noise[k] = rng.normal(0.0, float(self.noise_std[j]), size=(n,))
+            for row, pj in enumerate(idx.tolist()):
+                if noisy[pj]:
+                    rng = np.random.default_rng(int(pts.noise_seed[pj]))
+                    self.noise[row] = rng.normal(0.0, float(self.noise_std[pj]), size=(n,))
         # the move the limit-cycle test measures against [m]
         if amp is not None:
             self.step = np.asarray(amp, dtype=np.float64).copy()
@@ -204,7 +206,8 @@ def compute_chunk(spec: SweepSpec, c: int, controllers: Sequence[Any] | None = N
     if threads is not None:
         import numba
 
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+        most = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+        numba.set_num_threads(max(1, min(int(threads), most)))
     ctls = list(controllers) if controllers is not None else build_controllers(spec)
     lo, hi = spec.chunk_range(c)
     pts = points(spec, lo, hi)
@@ -213,9 +216,9 @@ def compute_chunk(spec: SweepSpec, c: int, controllers: Sequence[Any] | None = N
     m = len(pts)
     idx = np.flatnonzero(runs.valid)
     mo = dict(spec.metric_options)
-    kw = {"rise": (mo.get("rise_low", 0.1), mo.get("rise_high", 0.9)),
-          "settle_band": mo.get("settle_band", 0.02),
-          "settle_band_2": mo.get("settle_band_2", 0.05)}
+    kw: dict[str, Any] = {"rise": (mo.get("rise_low", 0.1), mo.get("rise_high", 0.9)),
+                          "settle_band": mo.get("settle_band", 0.02),
+                          "settle_band_2": mo.get("settle_band_2", 0.05)}
     n_ctl = len(ctls)
     n_rows = m * n_ctl
     metric_cols = {name: np.full(n_rows, np.nan) for name in (*METRIC_NAMES, *TAIL_COLUMNS)}
@@ -273,10 +276,15 @@ def _prepare(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None) ->
             raise InputError(f"{str(out)!r} holds a different sweep (its spec differs in "
                              f"{', '.join(diff) or 'its files'}); --resume continues only the "
                              f"same spec: give a new folder")
+        for tmp in (out / "chunks").glob(".chunk-*.tmp"):  # left by a kill mid-write
+            tmp.unlink(missing_ok=True)
+        adopted = False
         for c, _path in finished_files(out).items():
             if str(c) not in man.chunks and c < man.n_chunks:
                 lo, hi = spec.chunk_range(c)
-                adopt(out, man, c, (hi - lo) * len(spec.controllers))
+                adopted |= adopt(out, man, c, (hi - lo) * len(spec.controllers))
+        if adopted:
+            man.write(out)
         return man
     if out.is_dir() and any(out.iterdir()):
         raise OutputError(f"--out {str(out)!r} is a folder that is not empty and holds no "
@@ -316,18 +324,75 @@ def _progress(total: int, done: int, enabled: bool | None) -> Iterator[Callable[
         bar.close()
 
 
+def _cores() -> int:
+    """Cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
 def _chunk_task(spec: SweepSpec, c: int, controllers: Sequence[Any]) -> tuple[int, Any]:
     """A Dask task: chunk ``c`` on one numba thread (the worker is the unit of parallelism)."""
     return c, compute_chunk(spec, c, controllers, threads=1)
 
 
+def _worker_init() -> None:
+    """A local worker process: Ctrl-C is the parent's to handle (it stops the pool), the batch
+    kernels run on one thread (the process is the unit of parallelism), and the process ends
+    when its parent does (Linux: ``PR_SET_PDEATHSIG``), so ``kill -9`` of a sweep leaves no
+    worker computing a chunk nobody will write."""
+    import signal
+
+    import numba
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    numba.set_num_threads(1)
+    if sys.platform.startswith("linux"):  # die with the parent, even after its SIGKILL
+        import ctypes
+
+        pr_set_pdeathsig = 1
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL))
+
+
+def _local_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
+                  processes: int) -> Iterator[tuple[int, Any]]:
+    """Chunks on a pool of local processes, at most two per process queued at a time."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+
+    ctx = multiprocessing.get_context("spawn")  # numba's threads and fork do not mix
+    pool = ProcessPoolExecutor(max_workers=processes, mp_context=ctx,
+                               initializer=_worker_init)
+    pending = list(todo)
+    running: set[Future[tuple[int, Any]]] = set()
+    try:
+        while pending or running:
+            while pending and len(running) < 2 * processes:
+                running.add(pool.submit(_chunk_task, spec, pending.pop(0), controllers))
+            finished, running = wait(running, return_when=FIRST_COMPLETED)
+            for fut in sorted(finished, key=lambda f: f.result()[0]):
+                yield fut.result()
+    finally:
+        for fut in running:
+            fut.cancel()
+        procs = list(getattr(pool, "_processes", {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:  # a chunk in flight is lost by design; do not wait for it
+            if proc.is_alive():
+                proc.terminate()
+
+
 def _dask_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
                  workers: int | None, scheduler: str | None) -> Iterator[tuple[int, Any]]:
     try:
-        from distributed import Client, LocalCluster, as_completed
+        import distributed
     except ImportError:
         raise InputError("--workers and --scheduler run on dask.distributed, which is not "
                          "installed: pip install 'fuzzyservo[distributed]'") from None
+    dd: Any = distributed  # untyped library: calls through Any
+    Client, LocalCluster, as_completed = dd.Client, dd.LocalCluster, dd.as_completed
     cluster = None
     if scheduler is not None:
         try:
@@ -364,8 +429,10 @@ def _dask_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
 
 def run_sweep(spec: SweepSpec, out: str | Path, *, resume: bool = False,
               workers: int | None = None, scheduler: str | None = None,
-              progress: bool | None = None, spec_text: str | None = None,
-              on_chunk: Callable[[int], None] | None = None) -> Manifest:
+              processes: int | None = None, progress: bool | None = None,
+              spec_text: str | None = None,
+              on_chunk: Callable[[int], None] | None = None,
+              on_start: Callable[[Manifest, int], None] | None = None) -> Manifest:
     """Run the chunks of ``spec`` not yet in ``out`` and return the manifest.
 
     Parameters
@@ -376,9 +443,14 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, resume: bool = False,
         Its folder: new or empty, or (``resume``) one holding the same sweep.
     resume : bool
         Continue a sweep: skip its finished chunks.
+    processes : int, optional
+        Without Dask: local worker processes, each running whole chunks on one thread
+        (default: one per core; 1: in this process, the batch kernels on every numba
+        thread). Processes also spread the plants' set-up (linearisation, trim), which is
+        Python, over the cores.
     workers : int, optional
         Run on a local Dask cluster of this many single-threaded worker processes
-        (127.0.0.1 only). Default: in this process, on every numba thread.
+        (127.0.0.1 only).
     scheduler : str, optional
         Address of a running Dask scheduler (``tcp://host:8786``) to run the chunks on.
     progress : bool, optional
@@ -387,6 +459,8 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, resume: bool = False,
         The spec file's text, kept as ``spec.toml`` in a new folder.
     on_chunk : callable, optional
         Called with each chunk index once it is written (tests use it to interrupt).
+    on_start : callable, optional
+        Called with the manifest and the number of chunks to run, once the folder is ready.
 
     Raises
     ------
@@ -400,16 +474,27 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, resume: bool = False,
                              "not both")
     if workers is not None and not (isinstance(workers, int) and 1 <= workers <= 1024):
         raise ParameterError(f"--workers must be an integer in [1, 1024], got {workers!r}")
+    if processes is not None and not (isinstance(processes, int) and 1 <= processes <= 1024):
+        raise ParameterError(f"--processes must be an integer in [1, 1024], got "
+                             f"{processes!r}")
+    if processes is not None and (workers is not None or scheduler is not None):
+        raise ParameterError("--processes runs the chunks without Dask; drop it with "
+                             "--workers or --scheduler")
     out = Path(out)
     man = _prepare(spec, out, resume, spec_text)
     todo = [c for c in range(spec.n_chunks) if c not in man.done]
+    if on_start is not None:
+        on_start(man, len(todo))
     controllers = build_controllers(spec)
     n_ctl = len(spec.controllers)
     done_runs = sum(int(v["rows"]) for v in man.chunks.values())
     with _progress(spec.n_runs, done_runs, progress) as tick:
-        if workers is None and scheduler is None:
+        procs = min(processes or _cores(), len(todo))
+        if workers is None and scheduler is None and procs <= 1:
             chunks: Iterator[tuple[int, Any]] = (
                 (c, compute_chunk(spec, c, controllers)) for c in todo)
+        elif workers is None and scheduler is None:
+            chunks = _local_chunks(spec, todo, controllers, procs)
         else:
             chunks = _dask_chunks(spec, todo, controllers, workers, scheduler)
         for c, table in chunks:

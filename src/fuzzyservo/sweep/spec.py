@@ -191,7 +191,7 @@ class ControllerEntry:
         from ..registry import default_systems
 
         kind = controller_kind(self.controller)
-        systems = None
+        systems: dict[str, Any] | None = None
         if self.systems:
             systems = {role: loop_system(read_system(path), source=path,
                                          no_rule_value=self.no_rule_value)
@@ -302,6 +302,36 @@ class SweepSpec:
             "metrics": dict(self.metric_options),
         }
 
+    @classmethod
+    def from_canonical(cls, doc: Mapping[str, Any]) -> SweepSpec:
+        """The spec a manifest records (:meth:`canonical`): the same digest, files named by
+        the absolute paths they were read from."""
+        entries = tuple(
+            ControllerEntry(label=c["label"], controller=c["controller"],
+                            gains=tuple((k, float(v)) for k, v in c["gains"].items()),
+                            options=tuple(c["options"].items()),
+                            systems=tuple(c["systems"].items()),
+                            no_rule_value=c["no_rule_value"],
+                            digests=tuple(c["files"].items()))
+            for c in doc["controllers"])
+        vary = []
+        for v in doc["vary"]:
+            if "grid" in v:
+                vary.append(Variation(name=v["name"], relative=v["relative"],
+                                      values=tuple(float(x) for x in v["grid"])))
+            else:
+                args = tuple((k, float(x)) for k, x in v.items()
+                             if k not in ("name", "relative", "distribution"))
+                vary.append(Variation(name=v["name"], relative=v["relative"],
+                                      distribution=v["distribution"], args=args))
+        return cls(name=doc["name"], plant=doc["plant"], param_set=doc["param_set"],
+                   overrides=tuple((k, float(v)) for k, v in doc["overrides"].items()),
+                   start=doc["start"], ts=doc["ts"], duration=doc["duration"],
+                   substep=doc["substep"], reference=doc["reference"], delay=doc["delay"],
+                   noise_std=doc["noise_std"], samples=doc["samples"], seed=doc["seed"],
+                   chunk=doc["chunk"], controllers=entries, vary=tuple(vary),
+                   metric_options=tuple((k, float(v)) for k, v in doc["metrics"].items()))
+
     @property
     def digest(self) -> str:
         """SHA-256 of :meth:`canonical` (names the sweep in its manifest)."""
@@ -338,7 +368,7 @@ def _resolve_file(name: str, base_dir: Path, where: str, *, shipped: str | None 
     p = Path(name)
     cand = p if p.is_absolute() else base_dir / p
     if cand.is_file():
-        return cand
+        return cand.resolve()
     if shipped is not None and not p.is_absolute() and len(p.parts) == 1:
         from importlib import resources
 
@@ -377,10 +407,10 @@ def _controller(i: int, table: Any, base_dir: Path, ts: float) -> ControllerEntr
         source = str(path)
         digests.append((path.name, sha256_file(path)))
     elif isinstance(gains_in, dict):
-        name = table.get("controller")
+        name = str(table.get("controller"))
         if name not in controller_names():
-            raise _bad(f"{where}.controller",
-                       f"must be one of {', '.join(controller_names())}, got {name!r}")
+            raise _bad(f"{where}.controller", f"must be one of {', '.join(controller_names())}, "
+                                              f"got {table.get('controller')!r}")
         gains = {str(k): _number(f"{where}.gains.{k}", v) for k, v in gains_in.items()}
     else:
         raise _bad(f"{where}.gains", f"give a gains file name or a table of gains, got "
@@ -397,6 +427,13 @@ def _controller(i: int, table: Any, base_dir: Path, ts: float) -> ControllerEntr
     if bad:
         raise _bad(f"{where}.options", f"controller {name} takes no option {bad[0]!r}; its "
                                        f"options: {', '.join(kind.options) or 'none'}")
+    from .replay import OPTION_FLAGS
+
+    bad = [o for o in options if o not in OPTION_FLAGS]
+    if bad:  # every run must replay with fuzzyservo simulate, which has no flag for it
+        raise _bad(f"{where}.options", f"{bad[0]!r} cannot be set in a sweep (fuzzyservo "
+                                       f"simulate could not replay its runs); allowed: "
+                                       f"{', '.join(o for o in kind.options if o in OPTION_FLAGS)}")
     systems: list[tuple[str, str]] = []
     for role in ("du", "alpha"):
         key = f"{role}_system"
