@@ -497,8 +497,9 @@ def _summary_section(r: _Report, counts: IntArray, paired: dict[str, FloatArray]
                          f"{_pct(paired['ITAE'][k, best])}).")
     if ranked and ranked[0][1] > 0.0:
         q, e_fail, _ = ranked[0]
-        parts.append(f"The varied quantity that explains most of the failures is {q.name} "
-                     f"(eta² = {e_fail:.2g}, mean over the controllers whose failures vary).")
+        parts.append(f"Of the varied quantities, {q.name} has the strongest effect on failing "
+                     f"(eta² = {e_fail:.2g}, the mean over the controllers whose failures "
+                     f"vary; see 'Effect of each varied quantity').")
     return Section("Summary", summary=" ".join(parts))
 
 
@@ -739,18 +740,19 @@ def _effects(r: _Report) -> tuple[list[tuple[Quantity, float, float]], Section |
               f"varied quantity; a hollow marker is a bin of fewer than {MIN_BIN_RUNS} "
               f"runs."),
     ]
-    caption = ("eta²: share of the variance across runs that the quantity's grid values or "
-               "bins explain alone (0: no effect, 1: it decides alone; n/a: the controller "
-               "fails on every run or on none, or its ITAE does not vary)")
     sec = Section(
         "Effect of each varied quantity",
-        paragraphs=["Quantities ranked by their effect on failing (eta², mean over the "
+        paragraphs=["eta² is the share of the variance across a controller's valid runs (of "
+                    "failing, or of log10 ITAE) that a quantity's grid values or bins explain "
+                    "alone: 0 no effect, 1 it decides alone; n/a where the controller fails on "
+                    "every run or on none (or its ITAE does not vary).",
+                    "Quantities ranked by their effect on failing (eta², mean over the "
                     "controllers where it is defined; ties by the effect on ITAE): "
                     + ", ".join(f"{q.name} ({e:.2g})" for q, e, _ in ranked) + "."],
         tables=[Table(["quantity", *r.labels], eta_rows,
-                      caption=f"Effect on failing, per controller; {caption}"),
+                      caption="Effect on failing (eta² per controller)"),
                 Table(["quantity", *r.labels], eta_itae_rows,
-                      caption=f"Effect on log10 ITAE, per controller; {caption}")],
+                      caption="Effect on log10 ITAE (eta² per controller)")],
         figures=figs)
     return ranked, sec
 
