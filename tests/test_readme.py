@@ -90,6 +90,8 @@ def _reproduced(d: Path, out: str) -> None:
         assert (res / name).is_file(), name
     plants = {c["plant"] for c in json.loads((res / "claims.json").read_text())}
     assert plants == {"linear", "nonlinear"}
+    for plant in plants:  # claim C8 at scale: the first points of the shipped sweeps
+        assert "data:image/png;base64," in (res / f"c8-sweep-{plant}.html").read_text()
 
 
 def _row_stfpi_10(d: Path, out: str) -> None:
@@ -245,6 +247,24 @@ def _driver_run(d: Path, out: str) -> None:
     assert out.strip() == "2001 samples, max |u_C - u_recorded| = 0"  # as the README says
 
 
+def _sweep_example(d: Path, out: str) -> None:
+    assert out == (ROOT / "src/fuzzyservo/data/sweeps/example.toml").read_text(encoding="utf-8")
+
+
+def _sweep_run(d: Path, out: str) -> None:
+    from fuzzyservo.sweep import read_manifest, read_table
+
+    assert read_manifest(d / "example-sweep").complete
+    runs = read_table(d / "example-sweep")
+    assert runs.num_rows == 540 and len(set(runs.column("controller").to_pylist())) == 3
+    assert "540 runs in example-sweep" in out
+
+
+def _sweep_report(d: Path, out: str) -> None:
+    html = (d / "example-report.html").read_text(encoding="utf-8")
+    assert html.startswith("<!DOCTYPE html>") and "data:image/png;base64," in html
+
+
 def _fmu(name: str, identifier: str) -> Check:
     def check(d: Path, out: str) -> None:
         with zipfile.ZipFile(d / name) as zf:
@@ -261,6 +281,9 @@ CHECKS: dict[str, Check] = {
     "fuzzyservo export fmu --gains": _fmu("stfpi.fmu", "stfpi"),
     "fuzzyservo export fmu --plant nonlinear": _fmu("servo.fmu", "servo_nonlinear"),
     "make reproduce": _reproduced,
+    "fuzzyservo sweep --example": _sweep_example,
+    "fuzzyservo sweep src/fuzzyservo/data/sweeps/example.toml": _sweep_run,
+    "fuzzyservo sweep-report example-sweep": _sweep_report,
     "fuzzyservo simulate --gains src/fuzzyservo/data/gains/linear-stfpi.toml": _row_stfpi_10,
     "--out stfpi.csv --metrics": _stfpi_run,
     "--out ipd.csv --plot ipd.png": _ipd_run,
@@ -310,7 +333,7 @@ def test_readme_has_the_two_commands_first() -> None:
 
 #: Sections whose blocks build on each other (a file one writes, the next compiles): before a
 #: block runs, the blocks above it in its section run in the same scratch folder.
-CHAINED = {"To hardware"}
+CHAINED = {"To hardware", "Robustness sweeps"}
 
 
 def _c_file(block: Block) -> str:

@@ -22,7 +22,7 @@ from .. import __version__
 from ..errors import InputError, OutputError, ParameterError
 from ..study.paper_study import StudyConfig
 from ..study.runner import PLANTS, reproduce
-from ._plantargs import add_plant_arguments, params_from_args, set_name
+from ._plantargs import add_plant_arguments, params_from_args, params_given, set_name
 from ._runargs import add_system_arguments, systems_from_args, systems_record
 
 __all__ = ["MIN_DURATION", "register", "run"]
@@ -55,6 +55,9 @@ def register(subparsers: Any) -> None:
                              f"both (default both)")
     parser.add_argument("--duration", type=float, default=20.0, metavar="S",
                         help="length of each run [s], at least 5 (default 20)")
+    parser.add_argument("--c8-points", type=int, default=None, metavar="N",
+                        help="points of each plant's C8 sweep (claim C8 at scale, "
+                             "docs/sweep.md; default 400 linear, 200 nonlinear; 0: none)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_system_arguments(parser)
     add_plant_arguments(parser)
@@ -74,7 +77,14 @@ def run(args: argparse.Namespace) -> int:
     cfg = StudyConfig(params=params, set_name=set_name(args), duration=args.duration,
                       systems=from_files)
     plants = PLANTS if args.plant == "both" else (args.plant,)
-    total = len(plants) * (3 + (4 if args.retune else 0)) + 2
+    if args.c8_points is not None and not 0 <= args.c8_points <= 100_000:
+        raise ParameterError(f"--c8-points must be an integer in [0, 100000], got "
+                             f"{args.c8_points}")
+    # the shipped C8 sweeps run the committed gains on the paper's set: with other gains, set
+    # or systems they would not be this study's controllers, so they are left out (a note)
+    custom = bool(args.retune or args.gains_dir is not None or params_given(args) or from_files)
+    sweeps = args.c8_points != 0 and not custom
+    total = len(plants) * (3 + (4 if args.retune else 0) + int(sweeps)) + 2
     quiet = args.quiet
     bar = tqdm(total=total, desc="reproduce", unit="stage", file=sys.stderr,
                disable=quiet, mininterval=0.0 if os.environ.get("CI") else 0.1)
@@ -90,6 +100,10 @@ def run(args: argparse.Namespace) -> int:
                  str(args.gains_dir or "committed tuned gains (fuzzyservo/data/gains)"),
         "plants": ", ".join(plants),
     }
+    if sweeps:
+        meta["claim C8 at scale"] = ", ".join(f"c8-sweep-{p}.html" for p in plants) + (
+            " (the first points of the shipped C8 sweeps: the paper's and the tuned "
+            "controllers on plants drawn from the whole spread; docs/sweep.md)")
     if from_files:
         meta["fuzzy systems"] = "; ".join(
             f"{role}: {s.source} (sha256 {s.digest[:12]})" for role, s in from_files)
@@ -102,11 +116,22 @@ def run(args: argparse.Namespace) -> int:
              + ") were tuned with the paper's fuzzy systems, this study runs "
              + ", ".join(f"{role} system {s.source}" for role, s in from_files)
              + ": add --retune to tune for them")
+    if custom and args.c8_points != 0:
+        warn("the C8 sweeps (docs/sweep.md) run the committed gains on the paper's set and "
+             "systems; with --retune, --gains-dir, other parameters or systems they are left "
+             "out (fuzzyservo sweep runs them on any spec)")
     t0 = time.perf_counter()
     try:
+        extra = None
+        if sweeps:  # claim C8 at scale: the shipped sweeps, reduced (docs/sweep.md)
+            from ..sweep.c8 import run_c8
+
+            def extra(out: Path) -> tuple[dict[str, Path], list[Path]]:
+                return run_c8(out, plants, args.c8_points, progress=False, tick=progress)
+
         paths = reproduce(args.out, cfg, gains_dir=args.gains_dir, retune_gains=args.retune,
                           force=args.force, plants=plants, version=__version__,
-                          progress=progress, meta=meta, warn=warn)
+                          progress=progress, meta=meta, warn=warn, extra=extra)
     except OutputError:
         raise
     except OSError as exc:

@@ -311,16 +311,24 @@ def _mark_incomplete(out: Path, previous: Sequence[str], started: str, version: 
         "outputs": {rel: None for rel in previous}}, indent=2) + "\n")
 
 
+#: ``extra(out) -> (main paths by name, files written)`` of :func:`reproduce`.
+Extra = Callable[[Path], tuple[dict[str, Path], list[Path]]]
+
+
 def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
               retune_gains: bool = False, force: bool = False,
               plants: Sequence[str] = PLANTS, version: str = "",
               progress: Callable[[str], None] | None = None,
               meta: Mapping[str, str] | None = None,
-              warn: Callable[[str], None] | None = None) -> dict[str, Path]:
+              warn: Callable[[str], None] | None = None,
+              extra: Extra | None = None) -> dict[str, Path]:
     """Reproduce the paper's study into ``out`` and return the main output paths.
 
     ``warn(message)`` receives one-line warnings (a cache entry ignored, a folder left
     incomplete by an earlier run); by default they are issued as :class:`CacheWarning`.
+    ``extra(out)`` writes further outputs once the study's are written and returns
+    ``(main paths by name, every file it wrote or kept)``: they join the manifest like the
+    study's own (the command line's C8 sweeps, :mod:`fuzzyservo.sweep.c8`).
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -331,7 +339,7 @@ def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
     with _folder_lock(out):
         return _reproduce(out, cfg, gains_dir=gains_dir, retune_gains=retune_gains,
                           force=force, plants=plants, version=version, progress=progress,
-                          meta=meta, warn=warn)
+                          meta=meta, warn=warn, extra=extra)
 
 
 @contextlib.contextmanager
@@ -360,7 +368,7 @@ def _folder_lock(out: Path) -> Iterator[None]:
 def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_gains: bool,
                force: bool, plants: Sequence[str], version: str,
                progress: Callable[[str], None] | None, meta: Mapping[str, str] | None,
-               warn: Callable[[str], None] | None) -> dict[str, Path]:
+               warn: Callable[[str], None] | None, extra: Extra | None) -> dict[str, Path]:
     def say(message: str) -> None:
         if warn is not None:
             warn(message)
@@ -462,6 +470,10 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
                           traces_reused=kept_traces)
     if progress is not None:
         progress("figures, tables and report")
+    if extra is not None:
+        more, files = extra(out)
+        paths.update(more)
+        written.extend(files)
     rels = [p.relative_to(out).as_posix() for p in written]
     if retune_gains:
         rels.extend(rel for rel in gains_used if rel not in rels)

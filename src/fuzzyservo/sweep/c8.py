@@ -1,0 +1,92 @@
+"""Claim C8 at scale in ``fuzzyservo reproduce``: the shipped C8 sweeps
+(``data/sweeps/c8-{plant}.toml``), reduced to their first points, and their reports.
+
+Points depend on their index only (:mod:`fuzzyservo.sweep.sampling`), so the reduced sweep
+runs the very plants the full one starts with. A later run with the same inputs finds the
+sweep complete and only writes the report again; a folder holding another sweep (other gains,
+another reduction) is replaced, since it is reproduce's own output.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from importlib import resources
+from pathlib import Path
+
+from .._io import sha256_file, write_text_atomic
+from ..errors import OutputError
+from .dataset import read_manifest
+from .run import run_sweep
+from .spec import SweepSpec, load_spec
+
+__all__ = ["C8_POINTS", "c8_spec", "run_c8"]
+
+#: Points of each plant's C8 sweep that ``fuzzyservo reproduce`` runs by default.
+C8_POINTS: dict[str, int] = {"linear": 400, "nonlinear": 200}
+
+
+def c8_spec(plant: str, points: int | None = None) -> SweepSpec:
+    """The shipped C8 sweep of ``plant``, reduced to its first ``points`` (None: all)."""
+    path = Path(str(resources.files("fuzzyservo") / "data" / "sweeps" / f"c8-{plant}.toml"))
+    spec = load_spec(path)
+    if points is not None:
+        spec = replace(spec, samples=int(points), chunk=min(spec.chunk, 100),
+                       name=f"{spec.name}, first {points} points")
+    return spec
+
+
+def _report_key(manifest: str) -> str:
+    """What a sweep's report is made from: the sweep's manifest (spec, finished chunks and
+    their SHA-256), the report's code and the package version."""
+    from .. import __version__
+
+    h = hashlib.sha256(manifest.encode())
+    for mod in ("sweep/report.py", "plots/sweep_figures.py", "study/report.py"):
+        h.update((resources.files("fuzzyservo") / mod).read_bytes())
+    h.update(__version__.encode())
+    return h.hexdigest()
+
+
+def run_c8(out: Path, plants: Sequence[str], points: int | None = None, *,
+           progress: bool | None = None,
+           tick: Callable[[str], None] | None = None) -> tuple[dict[str, Path], list[Path]]:
+    """Run the reduced C8 sweeps into ``out/c8-sweep-{plant}`` and write
+    ``out/c8-sweep-{plant}.html``; return the report paths by name and every file of the
+    sweeps (for the study's manifest)."""
+    from .dataset import finished_files
+    from .report import write_report
+
+    paths: dict[str, Path] = {}
+    files: list[Path] = []
+    for plant in plants:
+        spec = c8_spec(plant, C8_POINTS.get(plant, 200) if points is None else points)
+        folder = Path(out) / f"c8-sweep-{plant}"
+        resume = False
+        if (folder / "manifest.json").is_file():
+            if read_manifest(folder).digest == spec.digest:
+                resume = True
+            else:
+                shutil.rmtree(folder)
+        elif folder.is_dir() and not any(p.is_file() for p in folder.rglob("*")):
+            shutil.rmtree(folder)  # emptied by a run without the sweeps: start it afresh
+        elif folder.exists():
+            raise OutputError(f"{str(folder)!r} exists and is not a sweep folder; move it "
+                              f"away (fuzzyservo reproduce writes its C8 sweep there)")
+        man = run_sweep(spec, folder, resume=resume, progress=progress)
+        report = Path(out) / f"c8-sweep-{plant}.html"
+        key = _report_key(man.to_json())
+        stamp = folder / "report.key"
+        if not (report.is_file() and stamp.is_file()
+                and stamp.read_text(encoding="utf-8") == f"{key} {sha256_file(report)}\n"):
+            write_report(folder, report)  # a warm run keeps an identical report
+            write_text_atomic(stamp, f"{key} {sha256_file(report)}\n")
+        files.append(stamp)
+        paths[f"C8 sweep, {plant} plant"] = report
+        files += [report, folder / "manifest.json",
+                  *(p for _, p in sorted(finished_files(folder).items()))]
+        if tick is not None:
+            tick(f"{plant}: C8 sweep")
+    return paths, files
