@@ -94,3 +94,17 @@ def test_relative_values_multiply_the_nominal() -> None:
     pts = points(spec, 0, 2)
     m0 = spec.nominal.load.mass
     assert pts.values["load.mass"].tolist() == [0.5 * m0, 2.0 * m0]
+
+
+def test_fewer_samples_draw_the_first_plants_of_each_cell() -> None:
+    vary = [{"name": "delay", "grid": [0.0, 0.01, 0.02]},
+            {"name": "load.mass", "relative": True, "distribution": "log-uniform",
+             "low": 0.5, "high": 2.0}]
+    full, reduced = _spec(vary, samples=40), _spec(vary, samples=7)
+    a = points(full, 0, full.n_points)
+    b = points(reduced, 0, reduced.n_points)
+    for cell in range(3):
+        sel_a = (a.cell == cell) & (a.sample < 7)
+        sel_b = b.cell == cell
+        assert np.array_equal(a.values["load.mass"][sel_a], b.values["load.mass"][sel_b])
+        assert np.array_equal(a.noise_seed[sel_a], b.noise_seed[sel_b])

@@ -55,9 +55,10 @@ def register(subparsers: Any) -> None:
                              f"both (default both)")
     parser.add_argument("--duration", type=float, default=20.0, metavar="S",
                         help="length of each run [s], at least 5 (default 20)")
-    parser.add_argument("--c8-points", type=int, default=None, metavar="N",
-                        help="points of each plant's C8 sweep (claim C8 at scale, "
-                             "docs/sweep.md; default 400 linear, 200 nonlinear; 0: none)")
+    parser.add_argument("--c8-samples", type=int, default=None, metavar="N",
+                        help="draws per noise level of each plant's C8 sweep (claim C8 at "
+                             "scale, docs/sweep.md; default 100 linear, 40 nonlinear; the "
+                             "full sweeps have 3334; 0: none)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     add_system_arguments(parser)
     add_plant_arguments(parser)
@@ -77,13 +78,13 @@ def run(args: argparse.Namespace) -> int:
     cfg = StudyConfig(params=params, set_name=set_name(args), duration=args.duration,
                       systems=from_files)
     plants = PLANTS if args.plant == "both" else (args.plant,)
-    if args.c8_points is not None and not 0 <= args.c8_points <= 100_000:
-        raise ParameterError(f"--c8-points must be an integer in [0, 100000], got "
-                             f"{args.c8_points}")
+    if args.c8_samples is not None and not 0 <= args.c8_samples <= 100_000:
+        raise ParameterError(f"--c8-samples must be an integer in [0, 100000], got "
+                             f"{args.c8_samples}")
     # the shipped C8 sweeps run the committed gains on the paper's set: with other gains, set
     # or systems they would not be this study's controllers, so they are left out (a note)
     custom = bool(args.retune or args.gains_dir is not None or params_given(args) or from_files)
-    sweeps = args.c8_points != 0 and not custom
+    sweeps = args.c8_samples != 0 and not custom
     total = len(plants) * (3 + (4 if args.retune else 0) + int(sweeps)) + 2
     quiet = args.quiet
     bar = tqdm(total=total, desc="reproduce", unit="stage", file=sys.stderr,
@@ -116,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
              + ") were tuned with the paper's fuzzy systems, this study runs "
              + ", ".join(f"{role} system {s.source}" for role, s in from_files)
              + ": add --retune to tune for them")
-    if custom and args.c8_points != 0:
+    if custom and args.c8_samples != 0:
         warn("the C8 sweeps (docs/sweep.md) run the committed gains on the paper's set and "
              "systems; with --retune, --gains-dir, other parameters or systems they are left "
              "out (fuzzyservo sweep runs them on any spec)")
@@ -127,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
             from ..sweep.c8 import run_c8
 
             def extra(out: Path) -> tuple[dict[str, Path], list[Path]]:
-                return run_c8(out, plants, args.c8_points, progress=False, tick=progress)
+                return run_c8(out, plants, args.c8_samples, progress=False, tick=progress)
 
         paths = reproduce(args.out, cfg, gains_dir=args.gains_dir, retune_gains=args.retune,
                           force=args.force, plants=plants, version=__version__,

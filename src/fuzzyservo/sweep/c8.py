@@ -1,8 +1,8 @@
 """Claim C8 at scale in ``fuzzyservo reproduce``: the shipped C8 sweeps
-(``data/sweeps/c8-{plant}.toml``), reduced to their first points, and their reports.
+(``data/sweeps/c8-{plant}.toml``), reduced to their first draws, and their reports.
 
-Points depend on their index only (:mod:`fuzzyservo.sweep.sampling`), so the reduced sweep
-runs the very plants the full one starts with. A later run with the same inputs finds the
+A draw depends on its grid cell and its number there only (:mod:`fuzzyservo.sweep.sampling`),
+so the reduced sweep runs the very plants the full one starts each noise level with. A later run with the same inputs finds the
 sweep complete and only writes the report again; a folder holding another sweep (other gains,
 another reduction) is replaced, since it is reproduce's own output.
 """
@@ -22,19 +22,21 @@ from .dataset import read_manifest
 from .run import run_sweep
 from .spec import SweepSpec, load_spec
 
-__all__ = ["C8_POINTS", "c8_spec", "run_c8"]
+__all__ = ["C8_SAMPLES", "c8_spec", "run_c8"]
 
-#: Points of each plant's C8 sweep that ``fuzzyservo reproduce`` runs by default.
-C8_POINTS: dict[str, int] = {"linear": 400, "nonlinear": 200}
+#: Draws per noise level of each plant's C8 sweep that ``fuzzyservo reproduce`` runs by
+#: default (the first draws of the full sweep's).
+C8_SAMPLES: dict[str, int] = {"linear": 100, "nonlinear": 40}
 
 
-def c8_spec(plant: str, points: int | None = None) -> SweepSpec:
-    """The shipped C8 sweep of ``plant``, reduced to its first ``points`` (None: all)."""
+def c8_spec(plant: str, samples: int | None = None) -> SweepSpec:
+    """The shipped C8 sweep of ``plant``, reduced to the first ``samples`` draws of each grid
+    cell (None: all)."""
     path = Path(str(resources.files("fuzzyservo") / "data" / "sweeps" / f"c8-{plant}.toml"))
     spec = load_spec(path)
-    if points is not None:
-        spec = replace(spec, samples=int(points), chunk=min(spec.chunk, 100),
-                       name=f"{spec.name}, first {points} points")
+    if samples is not None:
+        spec = replace(spec, samples=int(samples), chunk=min(spec.chunk, 100),
+                       name=f"{spec.name}, first {samples} draws per noise level")
     return spec
 
 
@@ -50,7 +52,7 @@ def _report_key(manifest: str) -> str:
     return h.hexdigest()
 
 
-def run_c8(out: Path, plants: Sequence[str], points: int | None = None, *,
+def run_c8(out: Path, plants: Sequence[str], samples: int | None = None, *,
            progress: bool | None = None,
            tick: Callable[[str], None] | None = None) -> tuple[dict[str, Path], list[Path]]:
     """Run the reduced C8 sweeps into ``out/c8-sweep-{plant}`` and write
@@ -62,7 +64,7 @@ def run_c8(out: Path, plants: Sequence[str], points: int | None = None, *,
     paths: dict[str, Path] = {}
     files: list[Path] = []
     for plant in plants:
-        spec = c8_spec(plant, C8_POINTS.get(plant, 200) if points is None else points)
+        spec = c8_spec(plant, C8_SAMPLES.get(plant, 40) if samples is None else samples)
         folder = Path(out) / f"c8-sweep-{plant}"
         resume = False
         if (folder / "manifest.json").is_file():

@@ -1,10 +1,11 @@
 """The points of a sweep: grid cells and random draws, a pure function of the spec, the seed and
 the point's index.
 
-Every random number is computed from (seed, variation, point index) by a counter-based
-generator (SplitMix64's finaliser; Steele, Lea & Flood 2014), not drawn from a stream: point
-``i`` gets the same values whether it is computed alone, in any chunk, after a resume or on
-any Dask worker. A uniform u in (0, 1) becomes a value by the distribution's inverse CDF, so
+Every random number is computed from (seed, variation, grid cell, draw number in the cell) by
+a counter-based generator (SplitMix64's finaliser; Steele, Lea & Flood 2014), not drawn from a
+stream: a point gets the same values whether it is computed alone, in any chunk, after a
+resume or on any Dask worker, and draw s of cell c is the same in a sweep with fewer or more
+``samples`` (a reduced sweep runs the first plants of the full one, cell by cell). A uniform u in (0, 1) becomes a value by the distribution's inverse CDF, so
 truncation to bounds is exact (no rejection loop, no clipping):
 
 - ``uniform``: low + (high - low) u
@@ -35,6 +36,9 @@ _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
 #: Stream number of the noise seeds (variations use 1, 2, ... in spec order).
 _NOISE_STREAM = 0
+#: A draw's counter is cell * _CELL_STRIDE + sample: draw s of cell c is the same whatever
+#: ``samples`` is, so a sweep with fewer samples runs a subset of the plants of one with more.
+_CELL_STRIDE = 2**32
 
 
 def _mix(x: np.ndarray) -> np.ndarray:
@@ -118,13 +122,14 @@ def points(spec: SweepSpec, lo: int, hi: int) -> Points:
         stride //= size
         k = (cell // stride) % size
         values[var.name] = np.asarray(var.values, dtype=np.float64)[k]
+    key = cell * _CELL_STRIDE + sample  # the draw's counter: its cell and its number there
     for stream, var in enumerate(spec.vary, start=1):
         if var.is_grid:
             continue
-        values[var.name] = transform(var, counter_uniform(spec.seed, stream, index))
+        values[var.name] = transform(var, counter_uniform(spec.seed, stream, key))
     for var in spec.vary:
         if var.relative:
             values[var.name] = spec.nominal_value(var.name) * values[var.name]
     ordered = {v.name: values[v.name] for v in spec.vary}
     return Points(index=index, cell=cell, sample=sample, values=ordered,
-                  noise_seed=noise_seeds(spec.seed, index))
+                  noise_seed=noise_seeds(spec.seed, key))

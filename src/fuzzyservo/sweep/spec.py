@@ -89,6 +89,8 @@ DISTRIBUTIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 
 #: Most points a sweep may have (runs = points x controllers).
 MAX_POINTS = 100_000_000
+#: Most draws per grid cell (a draw's counter holds the cell and the draw in 32 bits each).
+MAX_SAMPLES = 2**32 - 1
 
 #: Points per chunk by default: a chunk is one task, one Parquet file and the unit of resume.
 DEFAULT_CHUNK = 1000
@@ -598,7 +600,8 @@ def parse_spec(doc: Mapping[str, Any], *, base_dir: str | Path = ".") -> SweepSp
         name=str(sw.get("name", "sweep")), plant=plant, param_set=param_set,
         overrides=tuple(overrides.items()), start=start, ts=ts, duration=duration,
         substep=substep, reference=ref_spec, delay=delay, noise_std=noise,
-        samples=_integer("sweep.samples", sw.get("samples", 1), 1, MAX_POINTS),
+        samples=_integer("sweep.samples", sw.get("samples", 1), 1,
+                         min(MAX_POINTS, MAX_SAMPLES)),
         seed=_integer("sweep.seed", sw.get("seed", 0), 0, 2**63 - 1),
         chunk=_integer("sweep.chunk", sw.get("chunk", DEFAULT_CHUNK), 1, 1_000_000),
         metric_options=metric_options, base_dir=str(base), params_nominal=params)
