@@ -36,6 +36,7 @@ from ..errors import ParameterError
 from .tuning import OBJECTIVES
 
 __all__ = [
+    "MAX_ROBUST_POINTS",
     "STATISTICS",
     "RobustRecord",
     "RobustSet",
@@ -49,6 +50,10 @@ __all__ = [
 #: percentile ``pNN`` with 0 < NN < 100 (``p90``, ``p97.5``), by numpy's default (linear)
 #: interpolation between the sorted values.
 STATISTICS: tuple[str, ...] = ("mean", "worst", "pNN")
+
+#: Most plants a robust set may have: a generation of a self-tuning fuzzy PI search at the
+#: default population (30 candidates) is then 7680 closed loops.
+MAX_ROBUST_POINTS = 256
 
 _PERCENTILE = re.compile(r"p(\d+(?:\.\d+)?)")
 
@@ -174,7 +179,7 @@ class RobustRecord:
     digest : str
         SHA-256 of everything that defines the set's plants, delays, reference and noise
         (:func:`fuzzyservo.sweep.robust.set_digest`: the spec's canonical record without its
-        controllers).
+        controllers, and every point's values and noise seed).
     points : int
         Number of plants in the set.
     statistic : str
@@ -235,8 +240,8 @@ class RobustSet:
 
     def __post_init__(self) -> None:
         m = len(self.plants)
-        if m == 0:
-            raise ParameterError("a robust set needs at least one plant")
+        if not 1 <= m <= MAX_ROBUST_POINTS:
+            raise ParameterError(f"a robust set needs 1 to {MAX_ROBUST_POINTS} plants, got {m}")
         d = np.asarray(self.delays, dtype=np.float64).reshape(-1)
         if d.size != m or not np.all(np.isfinite(d)) or np.any(d < 0.0):
             raise ParameterError(f"a robust set of {m} plants needs {m} finite delays >= 0 s, "

@@ -8,14 +8,15 @@ plant of the registry; what is searched is the controller's registry entry.
 Robust tuning: ``fuzzyservo tune --robust SPEC.toml --controller NAME [--statistic
 worst|mean|pNN] [--objective itae] [--max-overshoot 10] ... --out gains.toml [--resume]``
 tunes one design on every point of a sweep spec (a fixed set of sampled plants, delays and
-sensor noise; at most :data:`~fuzzyservo.sweep.robust.MAX_ROBUST_POINTS`): the objective is the
-statistic over the set (default ``worst``, the largest), and every constraint must hold on
-every plant. The plant kind, parameter set and overrides, start, step, duration, sample time
-and delay are the spec's (``--plant``, ``--set``, ``--params``, ``--param``, ``--start``,
-``--step``, ``--duration``, ``--ts`` and ``--delay`` are refused); its ``[[controllers]]`` are
-not tuned. The gains file records the set (spec path, SHA-256 of the set, points, statistic)
-and the spec's nominal plant, which ``fuzzyservo simulate --gains`` runs; its metrics are the
-worst case over the set (the objective: the statistic, and ``<objective>_worst``).
+sensor noise; at most :data:`~fuzzyservo.analysis.robust.MAX_ROBUST_POINTS`): the objective
+is the statistic over the set (default ``worst``, the largest), and every constraint must
+hold on every plant. The plant kind, parameter set and overrides, start, step, duration,
+sample time and delay are the spec's (``--plant``, ``--set``, ``--params``, ``--param``,
+``--start``, ``--step``, ``--duration``, ``--ts`` and ``--delay`` are refused); its
+``[[controllers]]`` are not tuned. The gains file records the set (spec path, SHA-256 of the
+set, points, statistic) and the spec's nominal plant, which ``fuzzyservo simulate --gains``
+runs; its metrics are the worst case over the set (the objective: the statistic, and
+``<objective>_worst``).
 docs/sweep.md, "Robust tuning".
 
 A progress bar per search stage goes to stderr. Each search stops when it has converged
@@ -55,7 +56,7 @@ from ..analysis.autotune import (
     TuningSetup,
     tune_controller,
 )
-from ..analysis.robust import RobustSet, parse_statistic, worst_name
+from ..analysis.robust import MAX_ROBUST_POINTS, RobustSet, parse_statistic, worst_name
 from ..analysis.tuning import OBJECTIVES, StopRule, TuningConstraints
 from ..errors import ParameterError
 from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gains_toml
@@ -141,11 +142,11 @@ def register(subparsers: Any) -> None:
     p.add_argument("--start", type=float, default=None, metavar="FRACTION",
                    help="start position as a fraction of the stroke (default 0.5)")
     p.add_argument("--robust", type=Path, default=None, metavar="SPEC.toml",
-                   help="robust tuning: tune on every point of this sweep spec (at most "
-                        "256; plant, parameters, step, duration, ts, start and delay are the "
-                        "spec's, so --plant, --set, --params, --param, --step, --duration, "
-                        "--ts, --start and --delay are refused; its [[controllers]] are not "
-                        "tuned)")
+                   help=f"robust tuning: tune on every point of this sweep spec (at most "
+                        f"{MAX_ROBUST_POINTS}; plant, parameters, step, duration, ts, start "
+                        "and delay are the spec's, so --plant, --set, --params, --param, "
+                        "--step, --duration, --ts, --start and --delay are refused; its "
+                        "[[controllers]] are not tuned)")
     p.add_argument("--statistic", default=None, metavar="worst|mean|pNN",
                    help="with --robust: the statistic of the objective over the set that is "
                         "minimised: worst (the largest; default), mean, or a percentile such "

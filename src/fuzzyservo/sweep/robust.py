@@ -20,19 +20,15 @@ import json
 from dataclasses import replace
 
 from ..analysis.autotune import TuningSetup
-from ..analysis.robust import RobustRecord, RobustSet, parse_statistic
+from ..analysis.robust import MAX_ROBUST_POINTS, RobustRecord, RobustSet, parse_statistic
 from ..errors import ParameterError
 from ..sim.closed_loop import time_grid
 from ..sim.references import Step, parse_reference
 from .run import PointRuns
-from .sampling import points
+from .sampling import Points, points
 from .spec import SweepSpec
 
 __all__ = ["MAX_ROBUST_POINTS", "robust_set", "robust_setup", "set_digest"]
-
-#: Most points a robust set may have: a generation of a self-tuning fuzzy PI search at the
-#: default population (30 candidates) is then 7680 closed loops.
-MAX_ROBUST_POINTS = 256
 
 #: Keys of the spec's canonical record that do not change a plant of the set (its title, its
 #: chunking, the controllers a sweep of it compares).
@@ -41,11 +37,34 @@ _NOT_THE_SET = ("name", "chunk", "controllers")
 
 def set_digest(spec: SweepSpec) -> str:
     """SHA-256 of everything that defines the spec's set of plants: its canonical record
-    (:meth:`SweepSpec.canonical`) without its title, chunk size and controllers, so that
-    adding a design to compare to the spec keeps the record of a design tuned on it true."""
+    (:meth:`SweepSpec.canonical`) without its title, chunk size and controllers (so that
+    adding a design to compare to the spec keeps the record of a design tuned on it true),
+    and every point's drawn values and noise seed (so that a change of how points are drawn
+    changes the digest even when the spec's text does not).
+
+    Raises
+    ------
+    ParameterError
+        More than :data:`MAX_ROBUST_POINTS` points.
+    """
+    _check_size(spec)
+    return _digest(spec, points(spec, 0, spec.n_points))
+
+
+def _digest(spec: SweepSpec, pts: Points) -> str:
     rec = {k: v for k, v in spec.canonical().items() if k not in _NOT_THE_SET}
+    rec["points"] = {name: [repr(float(x)) for x in vals] for name, vals in pts.values.items()}
+    rec["noise_seeds"] = [int(x) for x in pts.noise_seed]
     text = json.dumps(rec, sort_keys=True, allow_nan=False)
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _check_size(spec: SweepSpec) -> None:
+    n = spec.n_points
+    if n > MAX_ROBUST_POINTS:
+        raise ParameterError(f"the robust set has {n} points (grid cells x samples); at most "
+                             f"{MAX_ROBUST_POINTS} are allowed, since every generation runs "
+                             f"each candidate on every point: lower samples or the grid")
 
 
 def _step(spec: SweepSpec) -> float:
@@ -86,11 +105,8 @@ def robust_set(spec: SweepSpec, *, source: str, statistic: str
         statistic.
     """
     stat = parse_statistic(statistic)
+    _check_size(spec)
     n = spec.n_points
-    if n > MAX_ROBUST_POINTS:
-        raise ParameterError(f"the robust set has {n} points (grid cells x samples); at most "
-                             f"{MAX_ROBUST_POINTS} are allowed, since every generation runs "
-                             f"each candidate on every point: lower samples or the grid")
     _step(spec)
     pts = points(spec, 0, n)
     t = time_grid(spec.duration, spec.ts)
@@ -105,7 +121,7 @@ def robust_set(spec: SweepSpec, *, source: str, statistic: str
                      rise=(mo.get("rise_low", 0.1), mo.get("rise_high", 0.9)),
                      settle_band=mo.get("settle_band", 0.02),
                      settle_band_2=mo.get("settle_band_2", 0.05))
-    record = RobustRecord(source=source, digest=set_digest(spec), points=n, statistic=stat)
+    record = RobustRecord(source=source, digest=_digest(spec, pts), points=n, statistic=stat)
     return rset, record
 
 
