@@ -318,3 +318,24 @@ def test_ctrl_c_keeps_finished_chunks_and_says_how_to_resume(spec_file: Path, tm
     assert "--resume" in proc.stderr and "interrupted" in proc.stderr
     assert 3 <= len(read_manifest(out).done) <= 5
     assert _resume(spec_file, out) == reference_digest
+
+
+def test_scheduler_address_runs_on_that_cluster(kill_spec: tuple[Path, str],
+                                                tmp_path: Path) -> None:
+    from distributed import LocalCluster
+
+    spec_file, digest = kill_spec
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address=None, silence_logs=40) as cluster:
+        out = tmp_path / "s"
+        assert main(["sweep", str(spec_file), "--out", str(out), "--scheduler",
+                     cluster.scheduler_address, "--no-progress"]) == 0
+    assert table_digest(read_table(out)) == digest
+
+
+def test_unreachable_scheduler_is_one_line(spec_file: Path, tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["sweep", str(spec_file), "--out", str(tmp_path / "s"), "--scheduler",
+                 "tcp://127.0.0.1:9", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--scheduler 'tcp://127.0.0.1:9': cannot connect" in err

@@ -259,12 +259,11 @@ def compute_chunk(spec: SweepSpec, c: int, controllers: Sequence[Any] | None = N
 
 # ---- orchestration ----------------------------------------------------------------------------
 
-def _prepare(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None) -> Manifest:
-    """Create the folder and manifest, or check and reopen them for a resume."""
-    manifest_path = out / "manifest.json"
+def _check_folder(spec: SweepSpec, out: Path, resume: bool) -> Manifest | None:
+    """Refuse a folder the sweep must not write (read-only); its manifest when resuming."""
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {str(out)!r} is a file; give a folder for the sweep")
-    if manifest_path.exists():
+    if (out / "manifest.json").exists():
         man = read_manifest(out)
         if not resume:
             raise OutputError(f"{str(out)!r} already holds a sweep ({len(man.chunks)} of "
@@ -276,6 +275,19 @@ def _prepare(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None) ->
             raise InputError(f"{str(out)!r} holds a different sweep (its spec differs in "
                              f"{', '.join(diff) or 'its files'}); --resume continues only the "
                              f"same spec: give a new folder")
+        return man
+    if out.is_dir() and any(out.iterdir()):
+        raise OutputError(f"--out {str(out)!r} is a folder that is not empty and holds no "
+                          f"sweep; give a new or empty folder")
+    if resume:
+        raise InputError(f"--resume: {str(out)!r} holds no sweep to resume")
+    return None
+
+
+def _prepare(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None) -> Manifest:
+    """Create the folder and manifest, or check and reopen them for a resume."""
+    man = _check_folder(spec, out, resume)
+    if man is not None:
         for tmp in (out / "chunks").glob(".chunk-*.tmp"):  # left by a kill mid-write
             tmp.unlink(missing_ok=True)
         adopted = False
@@ -286,11 +298,6 @@ def _prepare(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None) ->
         if adopted:
             man.write(out)
         return man
-    if out.is_dir() and any(out.iterdir()):
-        raise OutputError(f"--out {str(out)!r} is a folder that is not empty and holds no "
-                          f"sweep; give a new or empty folder")
-    if resume:
-        raise InputError(f"--resume: {str(out)!r} holds no sweep to resume")
     try:
         (out / "chunks").mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -384,47 +391,47 @@ def _local_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
                 proc.terminate()
 
 
-def _dask_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
-                 workers: int | None, scheduler: str | None) -> Iterator[tuple[int, Any]]:
+def _dask_client(workers: int | None, scheduler: str | None) -> tuple[Any, Any]:
+    """(client, local cluster or None): connected before the folder is touched, so a bad
+    address leaves nothing behind."""
     try:
         import distributed
     except ImportError:
         raise InputError("--workers and --scheduler run on dask.distributed, which is not "
                          "installed: pip install 'fuzzyservo[distributed]'") from None
     dd: Any = distributed  # untyped library: calls through Any
-    Client, LocalCluster, as_completed = dd.Client, dd.LocalCluster, dd.as_completed
-    cluster = None
     if scheduler is not None:
         try:
-            client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as exc:
-            raise InputError(f"--scheduler {scheduler!r}: cannot connect ({exc})") from None
-    else:
-        cluster = LocalCluster(n_workers=int(workers or 1), threads_per_worker=1,
-                               processes=True, host="127.0.0.1", dashboard_address=None,
-                               silence_logs=40)
-        client = Client(cluster)
-    try:
-        n_workers = max(1, len(client.scheduler_info().get("workers", {})) or int(workers or 1))
-        ctl_future = client.scatter(list(controllers), broadcast=True)
-        spec_future = client.scatter(spec, broadcast=True)
-        pending = list(todo)
-        in_flight = 2 * n_workers  # a queue of one per worker: no worker idles between chunks
-        ac = as_completed()
-        for _ in range(min(in_flight, len(pending))):
+            return dd.Client(scheduler, timeout="10s"), None
+        except (OSError, TimeoutError, ValueError) as exc:
+            why = " ".join(str(exc).split())
+            raise InputError(f"--scheduler {scheduler!r}: cannot connect ({why})") from None
+    cluster = dd.LocalCluster(n_workers=int(workers or 1), threads_per_worker=1,
+                              processes=True, host="127.0.0.1", dashboard_address=None,
+                              silence_logs=40)
+    return dd.Client(cluster), cluster
+
+
+def _dask_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
+                 client: Any, workers: int | None) -> Iterator[tuple[int, Any]]:
+    """Chunks as Dask tasks, at most two per worker queued at a time."""
+    import distributed
+
+    dd: Any = distributed
+    n_workers = max(1, len(client.scheduler_info().get("workers", {})) or int(workers or 1))
+    ctl_future = client.scatter(list(controllers), broadcast=True)
+    spec_future = client.scatter(spec, broadcast=True)
+    pending = list(todo)
+    ac = dd.as_completed()
+    for _ in range(min(2 * n_workers, len(pending))):
+        ac.add(client.submit(_chunk_task, spec_future, pending.pop(0), ctl_future, pure=False))
+    for fut in ac:
+        c, table = fut.result()
+        fut.release()
+        if pending:
             ac.add(client.submit(_chunk_task, spec_future, pending.pop(0), ctl_future,
                                  pure=False))
-        for fut in ac:
-            c, table = fut.result()
-            fut.release()
-            if pending:
-                ac.add(client.submit(_chunk_task, spec_future, pending.pop(0), ctl_future,
-                                     pure=False))
-            yield c, table
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        yield c, table
 
 
 def run_sweep(spec: SweepSpec, out: str | Path, *, resume: bool = False,
@@ -481,6 +488,24 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, resume: bool = False,
         raise ParameterError("--processes runs the chunks without Dask; drop it with "
                              "--workers or --scheduler")
     out = Path(out)
+    _check_folder(spec, out, resume)  # before a cluster starts or a scheduler is reached
+    client = cluster = None
+    if workers is not None or scheduler is not None:
+        client, cluster = _dask_client(workers, scheduler)
+    try:
+        return _run(spec, out, resume, spec_text, processes, workers, client, progress,
+                    on_chunk, on_start)
+    finally:
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _run(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None,
+         processes: int | None, workers: int | None, client: Any, progress: bool | None,
+         on_chunk: Callable[[int], None] | None,
+         on_start: Callable[[Manifest, int], None] | None) -> Manifest:
     man = _prepare(spec, out, resume, spec_text)
     todo = [c for c in range(spec.n_chunks) if c not in man.done]
     if on_start is not None:
@@ -490,13 +515,13 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, resume: bool = False,
     done_runs = sum(int(v["rows"]) for v in man.chunks.values())
     with _progress(spec.n_runs, done_runs, progress) as tick:
         procs = min(processes or _cores(), len(todo))
-        if workers is None and scheduler is None and procs <= 1:
+        if client is None and procs <= 1:
             chunks: Iterator[tuple[int, Any]] = (
                 (c, compute_chunk(spec, c, controllers)) for c in todo)
-        elif workers is None and scheduler is None:
+        elif client is None:
             chunks = _local_chunks(spec, todo, controllers, procs)
         else:
-            chunks = _dask_chunks(spec, todo, controllers, workers, scheduler)
+            chunks = _dask_chunks(spec, todo, controllers, client, workers)
         for c, table in chunks:
             man.chunks[str(c)] = write_chunk(out, c, table)
             man.write(out)
