@@ -398,7 +398,8 @@ def map_figure(controllers: Sequence[str], xaxis: MapAxis, yaxis: MapAxis,
     fig = _figure(3.6 * cols + 1.2, 3.2 * rows + 0.9)
     panels = _grid(fig, n)
     xe, ye = _map_edges(xaxis), _map_edges(yaxis)
-    annotate = xaxis.centres.size * yaxis.centres.size <= 64
+    # a value in each cell only where it fits: a 3.6-inch panel holds about 6 labels a row
+    annotate = xaxis.centres.size <= 6 and yaxis.centres.size <= 10
     mesh: Any = None
     for i, (ax, name) in enumerate(zip(panels, controllers, strict=True)):
         z = vals[i]
