@@ -339,3 +339,44 @@ def test_unreachable_scheduler_is_one_line(spec_file: Path, tmp_path: Path,
                  "tcp://127.0.0.1:9", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--scheduler 'tcp://127.0.0.1:9': cannot connect" in err
+
+
+def test_resume_recomputes_a_chunk_missing_or_altered(spec_file: Path, tmp_path: Path,
+                                                      reference_digest: str) -> None:
+    out = tmp_path / "s"
+    run_sweep(load_spec(spec_file), out, progress=False, processes=1)
+    chunk_path(out, 2).unlink()
+    data = bytearray(chunk_path(out, 5).read_bytes())
+    data[-20] ^= 0xFF
+    chunk_path(out, 5).write_bytes(bytes(data))
+    assert _resume(spec_file, out) == reference_digest
+    assert read_table(out).num_rows == 120
+
+
+def test_a_second_sweep_on_the_folder_is_refused(spec_file: Path, tmp_path: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    import fcntl
+
+    out = tmp_path / "s"
+    run_sweep(load_spec(spec_file), out, progress=False, processes=1)
+    with (out / ".lock").open("a+") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        assert main(["sweep", str(spec_file), "--out", str(out), "--resume",
+                     "--processes", "1"]) == 2
+    assert "another fuzzyservo sweep is writing" in capsys.readouterr().err
+
+
+def test_sigkill_while_the_pool_starts_leaves_no_worker(kill_spec: tuple[Path, str],
+                                                        tmp_path: Path) -> None:
+    spec_file, _ = kill_spec
+    out = tmp_path / "s"
+    proc = subprocess.Popen([sys.executable, "-m", "fuzzyservo", "sweep", str(spec_file),
+                             "--out", str(out), "--no-progress", "--processes", "2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not (out / "manifest.json").is_file() and time.monotonic() < deadline:
+        time.sleep(0.002)
+    os.kill(proc.pid, signal.SIGKILL)  # the workers are being spawned, not yet serving
+    # the workers hold the command's output pipes: they close once every worker has ended
+    proc.communicate(timeout=60)
+    assert proc.returncode == -signal.SIGKILL

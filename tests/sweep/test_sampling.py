@@ -72,11 +72,22 @@ def test_seed_and_variation_give_independent_streams() -> None:
      stats.truncnorm(-1.5, 3.0, loc=1.0, scale=0.1)),
     ("normal", {"mean": -3.0, "std": 2.0}, stats.norm(-3.0, 2.0)),
     ("log-normal", {"median": 1e-5, "sigma": 0.5}, stats.lognorm(0.5, scale=1e-5)),
+    # far in a tail, where Φ rounds to 1 (or 0): the truncation must not collapse on a bound
+    ("normal", {"mean": 1.0, "std": 0.01, "low": 1.09, "high": 1.2},
+     stats.truncnorm(9.0, 20.0, loc=1.0, scale=0.01)),
+    ("normal", {"mean": 0.0, "std": 1.0, "low": -40.0, "high": -7.0},
+     stats.truncnorm(-40.0, -7.0)),
+    ("log-normal", {"median": 1.0, "sigma": 0.1, "low": 2.5, "high": 4.0},
+     stats.truncnorm(np.log(2.5) / 0.1, np.log(4.0) / 0.1)),
 ])
 def test_inverse_cdf_matches_scipy(dist: str, args: dict, ref: object) -> None:
     var = Variation(name="delay", distribution=dist, args=tuple(args.items()))
     u = np.linspace(1e-6, 1.0 - 1e-6, 2001)
-    np.testing.assert_allclose(transform(var, u), ref.ppf(u), rtol=1e-9, atol=0.0)
+    got = transform(var, u)
+    if dist == "log-normal" and "low" in args:  # the reference is of ln(x / median) / sigma
+        got = np.log(got) / 0.1
+    np.testing.assert_allclose(got, ref.ppf(u), rtol=1e-9, atol=0.0)
+    assert np.unique(got).size == u.size  # strictly increasing: no draw piles on a bound
 
 
 def test_truncated_log_normal_stays_in_its_bounds_and_follows_its_law() -> None:

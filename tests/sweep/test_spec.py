@@ -68,6 +68,17 @@ def test_example_spec_uses_every_kind_of_variation(capsys: pytest.CaptureFixture
     ({"sweep": {"ts": 0.002}, "controllers": [{"gains": "linear-stfpi.toml"}]},
      "was tuned at ts = 0.001 s, the sweep runs at ts = 0.002 s"),
     ({"sweep": {}, "controllers": [{"gains": "no-such-file.toml"}]}, "no file 'no-such-file"),
+    (_doc(vary=[{"name": "noise_std", "grid": [-1e-3, 0.0]}]), "noise_std must be >= 0"),
+    (_doc(vary=[{"name": "delay", "distribution": "normal", "mean": 0.01, "std": 0.01}]),
+     "delay must be >= 0: give low >= 0"),
+    (_doc(vary=[{"name": "transducer.noise_std", "grid": [1e-6]}]),
+     "does nothing in the loop: vary noise_std"),
+    (_doc(vary=[{"name": "delay.transport_delay", "grid": [0.01]}]),
+     "does nothing in the loop: vary delay"),
+    (_doc(overrides={"transducer.noise_std": 1e-6}), "set .sweep. noise_std"),
+    (_doc(metrics={"settle_band": 0.05}), "spec: unknown key 'metrics'"),
+    (_doc(sweep={"delay": 5.0, "duration": 1.0}), "sweep.delay: .*1"),
+    (_doc(reference={"spec": "step:5.0"}), "reference.spec: .*stroke"),
 ])
 def test_bad_specs_are_refused_naming_the_key(doc: dict, message: str) -> None:
     message = message.replace("vary.0.", r"vary\[0\]").replace("controllers.0.",
@@ -114,3 +125,19 @@ def test_manifest_record_rebuilds_the_same_spec() -> None:
     assert again.n_points == spec.n_points
     assert [c.build(spec.ts).pack().tolist() for c in again.controllers] == \
         [c.build(spec.ts).pack().tolist() for c in spec.controllers]
+
+
+def test_digest_follows_the_content_of_every_file_read(tmp_path: Path) -> None:
+    src = Path(__file__).resolve().parents[2] / "src/fuzzyservo/data"
+    for name in ("gains/linear-stfpi.toml", "systems/paper-du.fis"):
+        (tmp_path / Path(name).name).write_bytes((src / name).read_bytes())
+    doc = {"sweep": {}, "controllers": [{"gains": "linear-stfpi.toml",
+                                         "du_system": "paper-du.fis"}]}
+    first = parse_spec(doc, base_dir=tmp_path).digest
+    fis = tmp_path / "paper-du.fis"
+    fis.write_text(fis.read_text(encoding="utf-8") + "\n", encoding="utf-8")
+    second = parse_spec(doc, base_dir=tmp_path).digest
+    gains = tmp_path / "linear-stfpi.toml"
+    gains.write_text(gains.read_text(encoding="utf-8") + "\n", encoding="utf-8")
+    third = parse_spec(doc, base_dir=tmp_path).digest
+    assert len({first, second, third}) == 3

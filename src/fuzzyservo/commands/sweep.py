@@ -106,12 +106,14 @@ def _run_sweep(args: argparse.Namespace) -> int:
               f"fuzzyservo sweep {args.spec} --out {args.out} --resume", file=sys.stderr)
         raise
     elapsed = time.perf_counter() - t0
-    table = read_table(args.out, columns=["controller", "outcome"])
+    table = read_table(args.out, columns=["controller", "outcome", "point"])
+    groups = table.group_by(["controller", "outcome"]).aggregate([("point", "count")])
     counts: dict[str, Counter[str]] = {}
-    for ctl, outcome in zip(table.column("controller").to_pylist(),
-                            table.column("outcome").to_pylist(), strict=True):
-        counts.setdefault(ctl, Counter())[outcome] += 1
-    print(f"{spec.n_runs} runs in {args.out} ({elapsed:.1f} s this session)")
+    for ctl, outcome, n in zip(*(groups.column(k).to_pylist()
+                                 for k in ("controller", "outcome", "point_count")),
+                               strict=True):
+        counts.setdefault(str(ctl), Counter())[str(outcome)] += int(n)
+    print(f"{table.num_rows} runs in {args.out} ({elapsed:.1f} s this session)")
     for e in spec.controllers:
         c = counts.get(e.label, Counter())
         total = sum(c.values()) or 1

@@ -2,9 +2,10 @@
 (``data/sweeps/c8-{plant}.toml``), reduced to their first draws, and their reports.
 
 A draw depends on its grid cell and its number there only (:mod:`fuzzyservo.sweep.sampling`),
-so the reduced sweep runs the very plants the full one starts each noise level with. A later run with the same inputs finds the
-sweep complete and only writes the report again; a folder holding another sweep (other gains,
-another reduction) is replaced, since it is reproduce's own output.
+so the reduced sweep runs the very plants the full one starts each noise level with. A later
+run with the same inputs finds the sweep complete and only writes the report again; a folder
+holding another sweep (other gains, another reduction) is replaced, since it is reproduce's own
+output.
 """
 
 from __future__ import annotations

@@ -197,7 +197,8 @@ def read_table(out: str | Path, columns: list[str] | None = None) -> Any:
     parts = [pq.read_table(files[c], columns=columns) for c in sorted(files) if c < man.n_chunks]
     if not parts:
         raise InputError(f"{str(out)!r} holds no finished chunk yet")
-    return pa.concat_tables(parts)
+    # chunks encode controller and outcome each with its own dictionary: one for the table
+    return pa.concat_tables(parts).unify_dictionaries()
 
 
 def table_digest(table: Any) -> str:

@@ -389,7 +389,7 @@ def _num(x: float) -> str:
 
 def _rules(spec: SweepSpec) -> list[str]:
     """The classification rules of fuzzyservo.sweep.run, with this sweep's numbers."""
-    band = dict(spec.metric_options).get("settle_band", 0.02) * 100.0
+    band = 2.0  # the settling band, % of the step (sweeps use simulate's metric options)
     hold = SETTLE_HOLD_FRACTION * 100.0
     tail = TAIL_FRACTION * 100.0
     return [
@@ -941,9 +941,7 @@ def _sweep_section(r: _Report) -> Section:
         ["duration of a run [s]", spec.duration], ["reference", spec.reference],
         ["nominal delay [s]", spec.delay], ["nominal noise std [m]", spec.noise_std],
         ["samples per grid cell", spec.samples], ["seed", spec.seed],
-        ["points per chunk", spec.chunk],
-        ["metric options", ", ".join(f"{k} = {v:g}" for k, v in spec.metric_options)
-         or "defaults"]]
+        ["points per chunk", spec.chunk]]
     if spec.plant == "nonlinear":
         settings.insert(6, ["RK4 substep [s]", spec.substep])
     vrows: list[list[object]] = []

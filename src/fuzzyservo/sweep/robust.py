@@ -115,12 +115,8 @@ def robust_set(spec: SweepSpec, *, source: str, statistic: str
         if err is not None:
             raise ParameterError(f"point {int(pts.index[j])} of the robust set is invalid "
                                  f"({err}); every point must run")
-    mo = dict(spec.metric_options)
     rset = RobustSet(plants=tuple(runs.plants), delays=runs.delay, noise=runs.noise,
-                     labels=tuple(int(i) for i in pts.index),
-                     rise=(mo.get("rise_low", 0.1), mo.get("rise_high", 0.9)),
-                     settle_band=mo.get("settle_band", 0.02),
-                     settle_band_2=mo.get("settle_band_2", 0.05))
+                     labels=tuple(int(i) for i in pts.index))
     record = RobustRecord(source=source, digest=_digest(spec, pts), points=n, statistic=stat)
     return rset, record
 

@@ -32,12 +32,14 @@ import contextlib
 import math
 import os
 import sys
+import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .._io import sha256_file
 from .._typing import FloatArray
 from ..errors import FuzzyServoError, InputError, OutputError, ParameterError
 from ..plant import with_overrides
@@ -53,7 +55,7 @@ from ..study.claims import (
     MAX_OVERSHOOT_PCT,
     TAIL_FRACTION,
 )
-from .dataset import Manifest, adopt, finished_files, read_manifest, write_chunk
+from .dataset import Manifest, adopt, chunk_path, finished_files, read_manifest, write_chunk
 from .sampling import Points, points
 from .spec import SweepSpec
 
@@ -215,10 +217,6 @@ def compute_chunk(spec: SweepSpec, c: int, controllers: Sequence[Any] | None = N
     runs = PointRuns(spec, pts, t)
     m = len(pts)
     idx = np.flatnonzero(runs.valid)
-    mo = dict(spec.metric_options)
-    kw: dict[str, Any] = {"rise": (mo.get("rise_low", 0.1), mo.get("rise_high", 0.9)),
-                          "settle_band": mo.get("settle_band", 0.02),
-                          "settle_band_2": mo.get("settle_band_2", 0.05)}
     n_ctl = len(ctls)
     n_rows = m * n_ctl
     metric_cols = {name: np.full(n_rows, np.nan) for name in (*METRIC_NAMES, *TAIL_COLUMNS)}
@@ -229,7 +227,7 @@ def compute_chunk(spec: SweepSpec, c: int, controllers: Sequence[Any] | None = N
         reference: Any = runs.ref if runs.roff is None else runs.roff[idx]
         res = simulate_batch(ctl, None, plant=[runs.plants[j] for j in idx], reference=reference,
                              duration=spec.duration, delay=runs.delay[idx], noise=runs.noise,
-                             tail_fraction=TAIL_FRACTION, **kw)
+                             tail_fraction=TAIL_FRACTION)
         rows = idx * n_ctl + k
         for i, name in enumerate(res.metric_names):
             metric_cols[name][rows] = res.metrics[:, i]
@@ -290,12 +288,19 @@ def _prepare(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None) ->
     if man is not None:
         for tmp in (out / "chunks").glob(".chunk-*.tmp"):  # left by a kill mid-write
             tmp.unlink(missing_ok=True)
+        changed = False
+        for c in sorted(man.done):  # a listed chunk must be there, as it was written
+            path = chunk_path(out, c)
+            if not path.is_file() or sha256_file(path) != man.chunks[str(c)]["sha256"]:
+                del man.chunks[str(c)]
+                path.unlink(missing_ok=True)
+                changed = True
         adopted = False
         for c, _path in finished_files(out).items():
             if str(c) not in man.chunks and c < man.n_chunks:
                 lo, hi = spec.chunk_range(c)
                 adopted |= adopt(out, man, c, (hi - lo) * len(spec.controllers))
-        if adopted:
+        if adopted or changed:
             man.write(out)
         return man
     try:
@@ -344,7 +349,7 @@ def _chunk_task(spec: SweepSpec, c: int, controllers: Sequence[Any]) -> tuple[in
     return c, compute_chunk(spec, c, controllers, threads=1)
 
 
-def _worker_init() -> None:
+def _worker_init(parent: int) -> None:
     """A local worker process: Ctrl-C is the parent's to handle (it stops the pool), the batch
     kernels run on one thread (the process is the unit of parallelism), and the process ends
     when its parent does (Linux: ``PR_SET_PDEATHSIG``), so ``kill -9`` of a sweep leaves no
@@ -361,6 +366,8 @@ def _worker_init() -> None:
         pr_set_pdeathsig = 1
         with contextlib.suppress(OSError, AttributeError):
             ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGKILL))
+    if os.getppid() != parent:  # the parent died before the line above: nobody to serve
+        os._exit(1)
 
 
 def _local_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
@@ -371,7 +378,7 @@ def _local_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
 
     ctx = multiprocessing.get_context("spawn")  # numba's threads and fork do not mix
     pool = ProcessPoolExecutor(max_workers=processes, mp_context=ctx,
-                               initializer=_worker_init)
+                               initializer=_worker_init, initargs=(os.getpid(),))
     pending = list(todo)
     running: set[Future[tuple[int, Any]]] = set()
     try:
@@ -389,6 +396,8 @@ def _local_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
         for proc in procs:  # a chunk in flight is lost by design; do not wait for it
             if proc.is_alive():
                 proc.terminate()
+        for proc in procs:
+            proc.join(timeout=5)
 
 
 def _dask_client(workers: int | None, scheduler: str | None) -> tuple[Any, Any]:
@@ -502,11 +511,37 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, resume: bool = False,
             cluster.close()
 
 
+@contextlib.contextmanager
+def _folder_lock(out: Path) -> Iterator[None]:
+    """Hold ``DIR/.lock`` while the sweep writes: a second sweep on the folder is refused."""
+    import fcntl
+
+    with (out / ".lock").open("a+") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise OutputError(f"another fuzzyservo sweep is writing {str(out)!r}; wait for it "
+                              f"to finish or give another --out") from None
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
 def _run(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None,
          processes: int | None, workers: int | None, client: Any, progress: bool | None,
          on_chunk: Callable[[int], None] | None,
          on_start: Callable[[Manifest, int], None] | None) -> Manifest:
     man = _prepare(spec, out, resume, spec_text)
+    with _folder_lock(out):
+        return _run_locked(spec, out, man, processes, workers, client, progress, on_chunk,
+                           on_start)
+
+
+def _run_locked(spec: SweepSpec, out: Path, man: Manifest, processes: int | None,
+                workers: int | None, client: Any, progress: bool | None,
+                on_chunk: Callable[[int], None] | None,
+                on_start: Callable[[Manifest, int], None] | None) -> Manifest:
     todo = [c for c in range(spec.n_chunks) if c not in man.done]
     if on_start is not None:
         on_start(man, len(todo))
@@ -522,11 +557,20 @@ def _run(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None,
             chunks = _local_chunks(spec, todo, controllers, procs)
         else:
             chunks = _dask_chunks(spec, todo, controllers, client, workers)
-        for c, table in chunks:
-            man.chunks[str(c)] = write_chunk(out, c, table)
-            man.write(out)
-            lo, hi = spec.chunk_range(c)
-            tick((hi - lo) * n_ctl)
-            if on_chunk is not None:
-                on_chunk(c)
+        last = 0.0
+        try:
+            for c, table in chunks:
+                man.chunks[str(c)] = write_chunk(out, c, table)
+                # the manifest at most every 2 s (rewriting it after each of 10^5 chunks is
+                # quadratic): a chunk written but not yet listed is adopted on resume
+                if time.monotonic() - last >= 2.0 or len(man.chunks) == man.n_chunks:
+                    man.write(out)
+                    last = time.monotonic()
+                lo, hi = spec.chunk_range(c)
+                tick((hi - lo) * n_ctl)
+                if on_chunk is not None:
+                    on_chunk(c)
+        finally:
+            if len(man.chunks) != man.n_chunks:
+                man.write(out)  # what is finished, listed (an interruption included)
     return man

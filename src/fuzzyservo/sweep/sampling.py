@@ -1,17 +1,19 @@
 """The points of a sweep: grid cells and random draws, a pure function of the spec, the seed and
 the point's index.
 
-Every random number is computed from (seed, variation, grid cell, draw number in the cell) by
-a counter-based generator (SplitMix64's finaliser; Steele, Lea & Flood 2014), not drawn from a
-stream: a point gets the same values whether it is computed alone, in any chunk, after a
-resume or on any Dask worker, and draw s of cell c is the same in a sweep with fewer or more
-``samples`` (a reduced sweep runs the first plants of the full one, cell by cell). A uniform u in (0, 1) becomes a value by the distribution's inverse CDF, so
-truncation to bounds is exact (no rejection loop, no clipping):
+Every random number is computed from (seed, variation, grid cell, draw number in the cell) by a
+counter-based generator (SplitMix64's finaliser; Steele, Lea & Flood 2014), not drawn from a
+stream: a point gets the same values whether it is computed alone, in any chunk, after a resume
+or on any Dask worker, and draw s of cell c is the same in a sweep with fewer or more
+``samples`` (a reduced sweep runs the first plants of the full one, cell by cell). A uniform u
+in (0, 1) becomes a value by the distribution's inverse CDF, so truncation to bounds is exact
+(no rejection loop, no clipping):
 
 - ``uniform``: low + (high - low) u
 - ``log-uniform``: exp(ln low + (ln high - ln low) u)
 - ``normal``: mean + std Φ⁻¹(Φ(a) + u (Φ(b) - Φ(a))), a, b the bounds in standard units
-- ``log-normal``: median exp(sigma z), z the truncated standard normal of ln(bounds/median)/sigma
+- ``log-normal``: median exp(sigma z), z the truncated standard normal of
+  ln(bounds/median)/sigma
 
 A relative variation multiplies the nominal value by the draw. The sensor noise of a point is
 ``numpy.random.default_rng(noise_seed).normal(0, noise_std, n)``, the very sequence
@@ -71,8 +73,15 @@ def noise_seeds(seed: int, index: IntArray) -> IntArray:
 
 
 def _truncated_std_normal(u: FloatArray, a: float, b: float) -> FloatArray:
-    lo, hi = float(ndtr(a)), float(ndtr(b))
-    z = ndtri(lo + u * (hi - lo))
+    """The standard normal truncated to [a, b] at the quantiles ``u``. In the upper tail
+    (a > 0) Φ rounds to 1 and the interval would vanish: there the lower tail's
+    Φ(-x) = 1 - Φ(x) is used, which keeps its digits."""
+    if a > 0.0:
+        lo, hi = float(ndtr(-b)), float(ndtr(-a))
+        z = -ndtri(hi - u * (hi - lo))
+    else:
+        lo, hi = float(ndtr(a)), float(ndtr(b))
+        z = ndtri(lo + u * (hi - lo))
     return np.clip(z, a, b)  # rounding of Φ⁻¹ near the bounds: stay inside them
 
 

@@ -97,12 +97,15 @@ DEFAULT_CHUNK = 1000
 
 _SWEEP_KEYS = {"name", "plant", "param_set", "start", "ts", "duration", "substep", "samples",
                "seed", "chunk", "delay", "noise_std"}
-_TOP_KEYS = {"sweep", "reference", "overrides", "controllers", "vary", "metrics"}
+_TOP_KEYS = {"sweep", "reference", "overrides", "controllers", "vary"}
 _CTL_KEYS = {"label", "controller", "gains", "options", "du_system", "alpha_system",
              "no_rule_value"}
 _VARY_KEYS = {"name", "relative", "grid", "distribution", "low", "high", "mean", "std",
               "median", "sigma"}
-_METRIC_KEYS = {"settle_band", "settle_band_2", "rise_low", "rise_high"}
+#: Parameters that do nothing in the simulated loop: the sweep's own ``noise_std`` and
+#: ``delay`` are the sensor noise and the transport delay (``delay = "hose"`` reads
+#: ``delay.transport_delay``, which may be overridden but not varied).
+_INERT = {"transducer.noise_std": "noise_std", "delay.transport_delay": "delay"}
 
 
 def _bad(where: str, what: str) -> ParameterError:
@@ -224,7 +227,6 @@ class SweepSpec:
     chunk: int = DEFAULT_CHUNK  #: points per chunk
     controllers: tuple[ControllerEntry, ...] = ()  #: the controllers compared
     vary: tuple[Variation, ...] = ()  #: what varies
-    metric_options: tuple[tuple[str, float], ...] = ()  #: settle_band, settle_band_2, rise
     base_dir: str = "."  #: folder relative file names were resolved against
     params_nominal: ServoParams | None = field(default=None, compare=False)  #: resolved set
 
@@ -301,7 +303,6 @@ class SweepSpec:
             "seed": self.seed, "chunk": self.chunk,
             "controllers": [c.record() for c in self.controllers],
             "vary": [v.record() for v in self.vary],
-            "metrics": dict(self.metric_options),
         }
 
     @classmethod
@@ -331,8 +332,7 @@ class SweepSpec:
                    start=doc["start"], ts=doc["ts"], duration=doc["duration"],
                    substep=doc["substep"], reference=doc["reference"], delay=doc["delay"],
                    noise_std=doc["noise_std"], samples=doc["samples"], seed=doc["seed"],
-                   chunk=doc["chunk"], controllers=entries, vary=tuple(vary),
-                   metric_options=tuple((k, float(v)) for k, v in doc["metrics"].items()))
+                   chunk=doc["chunk"], controllers=entries, vary=tuple(vary))
 
     @property
     def digest(self) -> str:
@@ -389,6 +389,7 @@ def _controller(i: int, table: Any, base_dir: Path, ts: float) -> ControllerEntr
     gains_in = table.get("gains")
     digests: list[tuple[str, str]] = []
     source = ""
+    gf_systems: tuple[tuple[str, str, str], ...] | None = None
     if isinstance(gains_in, str):
         from ..files import read_gains_file
 
@@ -407,7 +408,8 @@ def _controller(i: int, table: Any, base_dir: Path, ts: float) -> ControllerEntr
         name = gf.controller
         gains = dict(gf.gains)
         source = str(path)
-        digests.append((path.name, sha256_file(path)))
+        gf_systems = gf.tuned.setup.systems if gf.tuned is not None else None
+        digests.append(("gains", sha256_file(path)))
     elif isinstance(gains_in, dict):
         name = str(table.get("controller"))
         if name not in controller_names():
@@ -447,7 +449,7 @@ def _controller(i: int, table: Any, base_dir: Path, ts: float) -> ControllerEntr
             raise _bad(f"{where}.{key}", f"must be a file name, got {table[key]!r}")
         path = _resolve_file(table[key], base_dir, f"{where}.{key}", shipped="systems")
         systems.append((role, str(path)))
-        digests.append((path.name, sha256_file(path)))
+        digests.append((key, sha256_file(path)))
     nrv = table.get("no_rule_value")
     if nrv is not None:
         nrv = _number(f"{where}.no_rule_value", nrv)
@@ -455,7 +457,21 @@ def _controller(i: int, table: Any, base_dir: Path, ts: float) -> ControllerEntr
                             gains=tuple(checked.items()),
                             options=tuple(sorted(options.items())), systems=tuple(systems),
                             no_rule_value=nrv, source=source, digests=tuple(digests))
-    entry.build(ts)  # options and systems are checked by building once
+    ctl = entry.build(ts)  # options and systems are checked by building once
+    recorded = {} if gf_systems is None else {role: d for role, _src, d in gf_systems}
+    if recorded:
+        from ..formats import read_system
+        from ..fuzzy.loop import loop_system, system_digest
+        from ..paper import paper_fuzzy_system
+
+        given = {role: loop_system(read_system(path), source=path, no_rule_value=nrv).digest
+                 for role, path in systems}
+        for role, digest in recorded.items():
+            if given.get(role, system_digest(paper_fuzzy_system(role))) != digest:
+                src = {r: src for r, src, _ in gf_systems or ()}[role]
+                raise _bad(f"{where}.gains", f"the gains file was tuned with another {role} "
+                                             f"system ({src!r}); give it as {role}_system")
+    del ctl
     return entry
 
 
@@ -468,6 +484,9 @@ def _variation(i: int, table: Any, spec: SweepSpec) -> Variation:
     if not isinstance(name, str):
         raise _bad(f"{where}.name", f"must be a string, got {name!r}")
     name = _ALIASES.get(name, name)
+    if name in _INERT:
+        raise _bad(f"{where}.name", f"{name} does nothing in the loop: vary {_INERT[name]} "
+                                    f"instead")
     if name not in SPECIAL_NAMES and name not in allowed_names():
         raise _bad(f"{where}.name", f"{name!r} is neither delay, amplitude, noise_std, "
                                     f"load_force nor a parameter group.field (e.g. load.mass)")
@@ -493,6 +512,8 @@ def _variation(i: int, table: Any, spec: SweepSpec) -> Variation:
         if not isinstance(grid, list) or not grid:
             raise _bad(f"{where}.grid", f"must be a non-empty list of numbers, got {grid!r}")
         values = tuple(_number(f"{where}.grid", v) for v in grid)
+        if name in ("delay", "noise_std") and min(values) < 0.0:
+            raise _bad(f"{where}.grid", f"{name} must be >= 0, got {min(values)!r}")
         if len(set(values)) != len(values):
             raise _bad(f"{where}.grid", "has a value twice")
         return Variation(name=name, relative=relative, values=values)
@@ -516,6 +537,9 @@ def _variation(i: int, table: Any, spec: SweepSpec) -> Variation:
     lo, hi = args.get("low", -math.inf), args.get("high", math.inf)
     if not lo < hi:
         raise _bad(where, f"needs low < high, got {lo!r} and {hi!r}")
+    if name in ("delay", "noise_std") and dist in ("uniform", "normal") and not lo >= 0.0:
+        raise _bad(f"{where}.low", f"{name} must be >= 0: give low >= 0 (a {dist} "
+                                   f"distribution's draws are truncated to [low, high])")
     if dist == "log-uniform" and not lo > 0.0:
         raise _bad(f"{where}.low", f"a log-uniform distribution needs low > 0, got {lo!r}")
     if dist == "normal" and not args["std"] > 0.0:
@@ -561,6 +585,9 @@ def parse_spec(doc: Mapping[str, Any], *, base_dir: str | Path = ".") -> SweepSp
                 overrides[f"{k}.{f}"] = _number(f"overrides.{k}.{f}", x)
         else:
             overrides[str(k)] = _number(f"overrides.{k}", v)
+    if "transducer.noise_std" in overrides:
+        raise _bad("overrides", "transducer.noise_std does nothing in the loop: set [sweep] "
+                                "noise_std or vary noise_std")
     params = with_overrides(named_set(param_set), overrides) if overrides \
         else named_set(param_set)
     start = _number("sweep.start", sw.get("start", 0.5))
@@ -590,12 +617,6 @@ def parse_spec(doc: Mapping[str, Any], *, base_dir: str | Path = ".") -> SweepSp
         parse_reference(ref_spec)
     except InputError as exc:
         raise _bad("reference.spec", str(exc)) from None
-    mo = doc.get("metrics", {})
-    if not isinstance(mo, dict):
-        raise _bad("metrics", "must be a table")
-    _unknown("metrics", mo, _METRIC_KEYS)
-    metric_options = tuple((k, _number(f"metrics.{k}", mo[k], positive=True))
-                           for k in sorted(mo))
     spec = SweepSpec(
         name=str(sw.get("name", "sweep")), plant=plant, param_set=param_set,
         overrides=tuple(overrides.items()), start=start, ts=ts, duration=duration,
@@ -604,7 +625,7 @@ def parse_spec(doc: Mapping[str, Any], *, base_dir: str | Path = ".") -> SweepSp
                          min(MAX_POINTS, MAX_SAMPLES)),
         seed=_integer("sweep.seed", sw.get("seed", 0), 0, 2**63 - 1),
         chunk=_integer("sweep.chunk", sw.get("chunk", DEFAULT_CHUNK), 1, 1_000_000),
-        metric_options=metric_options, base_dir=str(base), params_nominal=params)
+        base_dir=str(base), params_nominal=params)
     ctls = doc.get("controllers")
     if not isinstance(ctls, list) or not ctls:
         raise _bad("controllers", "give at least one [[controllers]] table")
@@ -627,9 +648,41 @@ def parse_spec(doc: Mapping[str, Any], *, base_dir: str | Path = ".") -> SweepSp
     if spec.n_points > MAX_POINTS:
         raise _bad("sweep", f"{spec.n_points} points (grid cells x samples); at most "
                             f"{MAX_POINTS} are allowed")
+    _check_nominal(spec, names)
     if spec.random == () and spec.samples > 1 and spec.noise_std == 0.0 and \
             "noise_std" not in names:
         raise _bad("sweep.samples", f"{spec.samples} samples of a sweep with nothing random "
                                     f"would repeat identical runs: set samples = 1 or vary "
                                     f"something at random")
     return spec
+
+
+def _check_nominal(spec: SweepSpec, varied: list[str]) -> None:
+    """What every point shares is checked before a run: the delay against the run length,
+    the reference against the nominal plant's stroke (a point's own values are checked when it
+    runs, an invalid one becomes an ``invalid`` row)."""
+    from ..registry import build_plant
+    from ..sim.closed_loop import check_delay, plant_limits
+    from ..sim.references import check_reference, check_reference_samples, sample_reference
+
+    if "delay" not in varied:
+        try:
+            check_delay(spec.delay, duration=spec.duration)
+        except ParameterError as exc:
+            raise _bad("sweep.delay", str(exc)) from None
+    if "amplitude" in varied:
+        return
+    ref = parse_reference(spec.reference)
+    try:
+        check_reference(ref, ts=spec.ts, duration=spec.duration)
+        if any("." in n for n in varied):
+            return  # the stroke or the start may vary: checked per point
+        params = spec.nominal
+        plant = build_plant(spec.plant, params, spec.start * params.cylinder.stroke,
+                            substep=spec.substep)
+        t = time_grid(spec.duration, spec.ts)
+        stroke, resolution = plant_limits(plant)
+        check_reference_samples(plant.y0 + sample_reference(ref, t), t, start=plant.y0,
+                                stroke=stroke, resolution=resolution)
+    except (InputError, ParameterError) as exc:
+        raise _bad("reference.spec", str(exc)) from None
