@@ -17,7 +17,7 @@ from typing import Protocol, TypeVar, runtime_checkable
 import numba
 
 from .._typing import FloatArray, IntArray
-from .fuzzy_pi import fuzzy_pi_step
+from .fuzzy_pi import SystemTable, fuzzy_pi_step, system_table
 from .pid import pid_step
 
 __all__ = [
@@ -29,6 +29,7 @@ __all__ = [
     "Controller",
     "PackedController",
     "controller_step",
+    "controller_tables",
 ]
 
 #: Kind code of the PID family in packed form.
@@ -109,36 +110,45 @@ class PackedController(Protocol):
         ...
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def controller_step(
     kind: int,
     p: FloatArray,
     s: FloatArray,
     r: float,
     y: float,
-    du_rules: IntArray,
-    du_lims: FloatArray,
-    a_rules: IntArray,
-    a_lims: FloatArray,
+    du: SystemTable,
+    alpha: SystemTable,
 ) -> float:
     """One controller sample: update ``s`` in place and return the command u [-].
+
+    Inlined into the compiled loops, which pass ``p`` and ``s`` as data pointers
+    (:func:`~fuzzyservo.fuzzy.kernels.data_pointer`; arrays work too) and the fuzzy systems
+    as :func:`~fuzzyservo.control.fuzzy_pi.system_table` values, so nothing is
+    reference-counted per sample (:func:`controller_tables` makes them from ``tables()``).
 
     Parameters
     ----------
     kind : int
         :data:`KIND_PID`, :data:`KIND_FUZZY_PI` or :data:`KIND_COMMAND` (``r`` is the
         command; the open loop).
-    p, s : ndarray
+    p, s : ndarray or data pointer
         Packed parameters and state (see the controller classes).
     r, y : float
         Reference and measurement at this sample [m].
-    du_rules, du_lims, a_rules, a_lims : ndarray
-        The Δu and α systems in ``eval_uniform_grid`` form (ignored by the PID family).
+    du, alpha : SystemTable
+        The Δu and α systems (ignored by the PID family).
     """
     if kind == KIND_PID:
         return pid_step(p, s, r, y)
     if kind == KIND_COMMAND:
         return r
-    return fuzzy_pi_step(p, s, r, y, du_rules, du_lims, a_rules, a_lims)
+    return fuzzy_pi_step(p, s, r, y, du, alpha)
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def controller_tables(du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray,
+                      a_lims: FloatArray) -> tuple[SystemTable, SystemTable]:
+    """The ``du`` and ``alpha`` arguments of :func:`controller_step` from a controller's
+    ``tables()`` (which must outlive them)."""
+    return system_table(du_rules, du_lims), system_table(a_rules, a_lims)

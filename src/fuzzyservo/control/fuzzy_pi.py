@@ -25,18 +25,23 @@ from typing import Any, ClassVar, Literal, Protocol, Self
 
 import numba
 import numpy as np
+from numba.np.numpy_support import carray
 
 from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
 from ..fuzzy.general import MAGIC, eval_first2
-from ..fuzzy.kernels import eval_uniform_grid, eval_uniform_pair
+from ..fuzzy.kernels import GridTable, data_pointer, grid_eval, grid_pair, grid_table
 
 __all__ = [
     "FUZZY_GAIN_NAMES",
     "FuzzyPIController",
     "FuzzyPIState",
     "KernelSystem",
+    "SystemTable",
+    "eval_system",
     "fuzzy_pi_step",
+    "fuzzy_pi_step_arrays",
+    "system_table",
 ]
 
 #: Gains a batch may vary for the fuzzy controllers, in column order.
@@ -48,33 +53,43 @@ _NP = 9
 # packed state layout
 _UPREV, _EPREV, _YF, _STARTED, _ALPHA = range(5)
 
+#: A fuzzy system as the inlined step takes it (:func:`system_table`).
+SystemTable = tuple[int, GridTable, Any, int, Any, int]
+
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def eval_system(x1: float, x2: float, rules: IntArray, lims: FloatArray) -> float:
-    """A fuzzy system in kernel form at (x1, x2): the uniform-grid fast path for a rule table
-    (rules (n2, n1), lims (8,)), the general evaluator for a packed system (rules (1, N), the
-    packed integers; lims the packed floats: :meth:`fuzzyservo.fuzzy.general.CompiledSystem.
-    kernel_args`)."""
+def system_table(rules: IntArray, lims: FloatArray) -> SystemTable:
+    """A fuzzy system in kernel form as one value the inlined step takes (the arrays must
+    outlive it): ``(general, grid table, packed integers, their count, packed floats, their
+    count)``; ``general`` is 1 for a packed system (rules (1, N), C-contiguous, as
+    ``_tables`` makes them), whose grid table is a placeholder, else 0."""
+    rp = data_pointer(rules)
+    lp = data_pointer(lims)
     if rules.shape[0] == 1:
-        return eval_first2(x1, x2, rules[0], lims)
-    return eval_uniform_grid(x1, x2, rules, lims)
+        return (1, (rp, 2, 2, 0, 0, -1.0, 1.0, -1.0, 1.0, 0.0, 1.0, 2, 0.0), rp,
+                rules.shape[1], lp, lims.shape[0])
+    return (0, grid_table(rules, lims), rp, 0, lp, 0)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def fuzzy_pi_step(
-    p: FloatArray,
-    s: FloatArray,
-    r: float,
-    y: float,
-    du_rules: IntArray,
-    du_lims: FloatArray,
-    a_rules: IntArray,
-    a_lims: FloatArray,
-) -> float:
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def eval_system(x1: float, x2: float, tab: SystemTable) -> float:
+    """A fuzzy system (:func:`system_table`) at (x1, x2): the uniform-grid fast path for a
+    rule table, the general evaluator for a packed system (:meth:`fuzzyservo.fuzzy.general.
+    CompiledSystem.kernel_args`)."""
+    if tab[0] == 1:
+        return eval_first2(x1, x2, carray(tab[2], tab[3]), carray(tab[4], tab[5]))
+    return grid_eval(x1, x2, tab[1])
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def fuzzy_pi_step(p: FloatArray, s: FloatArray, r: float, y: float, du: SystemTable,
+                  alpha: SystemTable) -> float:
     """One fuzzy PI sample on packed ``p`` and state ``s`` (updated in place); returns u.
 
-    With ``p[8] == 1`` the output gain is scaled by α from the ``a_rules``/``a_lims`` system
-    (self-tuning, eq. 11), otherwise α = 1.
+    ``p`` and ``s`` are arrays or their :func:`~fuzzyservo.fuzzy.kernels.data_pointer`
+    (the compiled loops pass pointers: no reference counting in the inlined step); ``du``
+    and ``alpha`` are :func:`system_table` values. With ``p[8] == 1`` the output gain is
+    scaled by α from the ``alpha`` system (self-tuning, eq. 11), otherwise α = 1.
     """
     if s[_STARTED] == 0.0:
         yf = y
@@ -90,21 +105,30 @@ def fuzzy_pi_step(
     en = p[_KE] * e
     den = p[_KDE] * de
     if p[_ST] == 1.0:
-        if du_rules.shape[0] == 1 or a_rules.shape[0] == 1:
-            dun = eval_system(en, den, du_rules, du_lims)
-            alpha = eval_system(en, den, a_rules, a_lims)
+        if du[0] == 1 or alpha[0] == 1:
+            dun = eval_system(en, den, du)
+            alpha_f = eval_system(en, den, alpha)
         else:
-            dun, alpha = eval_uniform_pair(en, den, du_rules, du_lims, a_rules, a_lims)
+            dun, alpha_f = grid_pair(en, den, du[1], alpha[1])
     else:
-        dun = eval_system(en, den, du_rules, du_lims)
-        alpha = 1.0
-    u = s[_UPREV] + alpha * p[_KDU] * dun
+        dun = eval_system(en, den, du)
+        alpha_f = 1.0
+    u = s[_UPREV] + alpha_f * p[_KDU] * dun
     u = min(max(u, p[_UMIN]), p[_UMAX])
     s[_UPREV] = u
     s[_EPREV] = e
     s[_YF] = yf
-    s[_ALPHA] = alpha
+    s[_ALPHA] = alpha_f
     return u
+
+
+@numba.njit(cache=True, nogil=True)
+def fuzzy_pi_step_arrays(p: FloatArray, s: FloatArray, r: float, y: float,
+                         du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray,
+                         a_lims: FloatArray) -> float:
+    """:func:`fuzzy_pi_step` on the controller's arrays (the per-step API's call)."""
+    return fuzzy_pi_step(data_pointer(p), data_pointer(s), r, y,
+                         system_table(du_rules, du_lims), system_table(a_rules, a_lims))
 
 
 class KernelSystem(Protocol):
@@ -299,6 +323,7 @@ class FuzzyPIController:
              ) -> tuple[float, FuzzyPIState]:
         """One sample: command u [-] from reference and measurement [m], and the new state."""
         s = self.pack_state(state)
-        u = fuzzy_pi_step(self.pack(), s, float(reference), float(measurement),
-                          self.du_rules, self.du_lims, self.alpha_rules, self.alpha_lims)
+        u = fuzzy_pi_step_arrays(self.pack(), s, float(reference), float(measurement),
+                                 self.du_rules, self.du_lims, self.alpha_rules,
+                                 self.alpha_lims)
         return float(u), self.unpack_state(s)

@@ -59,9 +59,12 @@ _NP = 10
 _I, _D, _EDP = 0, 1, 2
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def pid_step(p: FloatArray, s: FloatArray, r: float, y: float) -> float:
-    """One PID sample on packed parameters ``p`` and state ``s`` (updated in place); returns u."""
+    """One PID sample on packed parameters ``p`` and state ``s`` (updated in place); returns u.
+
+    ``p`` and ``s`` are arrays or their data pointers (the compiled loops inline this step
+    with pointers: no reference counting per sample)."""
     e = r - y
     ed = p[_C] * r - y
     d = p[_AD] * s[_D] + p[_BD] * (ed - s[_EDP])
@@ -78,6 +81,12 @@ def pid_step(p: FloatArray, s: FloatArray, r: float, y: float) -> float:
     s[_D] = d
     s[_EDP] = ed
     return u
+
+
+@numba.njit(cache=True, nogil=True)
+def pid_step_arrays(p: FloatArray, s: FloatArray, r: float, y: float) -> float:
+    """:func:`pid_step` on the controller's arrays (the per-step API's call)."""
+    return pid_step(p, s, r, y)
 
 
 @dataclass(frozen=True, slots=True)
@@ -231,7 +240,7 @@ class PIDController:
              ) -> tuple[float, PIDState]:
         """One sample: command u [-] from reference and measurement [m], and the new state."""
         s = self.pack_state(state)
-        u = pid_step(self.pack(), s, float(reference), float(measurement))
+        u = pid_step_arrays(self.pack(), s, float(reference), float(measurement))
         return float(u), self.unpack_state(s)
 
 

@@ -32,17 +32,28 @@ No sampling, no sorting and no branch is involved.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any, cast
+
 import numba
+import numba.extending
 import numpy as np
+from numba.core import cgutils
+from numba.np.arrayobj import make_array
 
 from .._typing import FloatArray, IntArray
 
 __all__ = [
     "LIMS_SIZE",
+    "GridTable",
+    "data_pointer",
     "eval_uniform_batch",
     "eval_uniform_checked",
     "eval_uniform_grid",
     "eval_uniform_pair",
+    "grid_eval",
+    "grid_pair",
+    "grid_table",
     "segment_integrals",
 ]
 
@@ -50,8 +61,33 @@ __all__ = [
 LIMS_SIZE = 8
 _SIXTH = 1.0 / 6.0
 
+#: A rule table in the form the inlined kernels take (:func:`grid_table`): the rules' data
+#: pointer, shape and strides, then the eight ``lims`` (``n_out`` as an int).
+GridTable = tuple[Any, int, int, int, int, float, float, float, float, float, float, int, float]
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _edge_terms(a: float) -> tuple[float, float, float]:
+    """The powers of a clip height the segment integrals use: ``(0.5 a) a``, ``a a`` and
+    ``(a a) a`` (computed once per height: adjacent segments share their common end's)."""
+    aa = a * a
+    return 0.5 * a * a, aa, aa * a
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _segment(a: float, pa: float, qa: float, ca: float, b: float, pb: float, cb: float
+             ) -> tuple[float, float]:
+    """:func:`segment_integrals` from the heights and their :func:`_edge_terms`."""
+    # max(F, R) = F + R - min(F, R) with F = min(a, 1 - s), R = min(b, s); min(F, R) is the
+    # trapezoid min(m, s, 1 - s), m = min(a, b, 1/2), symmetric about s = 1/2 (area m - m^2)
+    m = min(a, b, 0.5)
+    tm = m - m * m
+    area = a - pa + b - pb - tm
+    moment = 0.5 * (a - qa + b - tm) + (ca - cb) * _SIXTH
+    return area, moment
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def segment_integrals(a: float, b: float) -> tuple[float, float]:
     """Area and first moment over s in [0, 1] of max(min(a, 1 - s), min(b, s)).
 
@@ -65,36 +101,78 @@ def segment_integrals(a: float, b: float) -> tuple[float, float]:
     Returns
     -------
     area, moment : float
-        Integral of g(s) and of s g(s) over [0, 1] (dimensionless).
+        Integral of g(s) and of s g(s) over [0, 1] (dimensionless):
+        ``a - a²/2 + b - b²/2 - (m - m²)`` and ``(a - a² + b - (m - m²))/2 + (a³ - b³)/6``,
+        m = min(a, b, 1/2).
     """
-    # max(F, R) = F + R - min(F, R) with F = min(a, 1 - s), R = min(b, s); min(F, R) is the
-    # trapezoid min(m, s, 1 - s), m = min(a, b, 1/2), symmetric about s = 1/2 (area m - m^2)
-    m = min(a, b, 0.5)
-    tm = m - m * m
-    area = a - 0.5 * a * a + b - 0.5 * b * b - tm
-    moment = 0.5 * (a - a * a + b - tm) + (a * a * a - b * b * b) * _SIXTH
-    return area, moment
+    pa, qa, ca = _edge_terms(a)
+    pb, _, cb = _edge_terms(b)
+    return _segment(a, pa, qa, ca, b, pb, cb)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def _height(
-    j: int, la: int, wa: float, lb: int, wb: float, lc: int, wc: float, ld: int, wd: float
-) -> float:
-    """Clip height of output label j: the largest strength of the four rules naming it."""
-    return max(
-        max(wa if la == j else 0.0, wb if lb == j else 0.0),
-        max(wc if lc == j else 0.0, wd if ld == j else 0.0),
-    )
+@numba.extending.intrinsic
+def _data_pointer(typingctx: Any, arr: Any) -> Any:
+    """The data pointer of an array (``CPointer(dtype)``), indexed as ``ptr[i]``.
+
+    Compiled loops pass pointers, not arrays, to the small functions they inline: numba's
+    IR-level inlining counts references to every array argument with an atomic operation per
+    call, which cost more than the fuzzy evaluation itself; a pointer is a plain value. The
+    array must outlive the pointer and be indexed within its bounds (no check is made).
+    """
+    if not isinstance(arr, numba.types.Array):
+        return None
+    sig = numba.types.CPointer(arr.dtype)(arr)  # type: ignore[no-untyped-call]
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        ary = make_array(signature.args[0])(  # type: ignore[no-untyped-call]
+            context, builder, value=args[0])
+        return ary.data
+
+    return sig, codegen
+
+
+#: Output labels up to which the clip heights are gathered in a stack buffer (more: found by
+#: scanning the four rules for each label, as before).
+_HEIGHTS_CAP = 64
+
+
+@numba.extending.intrinsic
+def _height_buffer_intrinsic(typingctx: Any) -> Any:
+    """A buffer of ``_HEIGHTS_CAP`` floats on the stack of the compiled function it is inlined
+    into (allocated once per call of that function, in its entry block)."""
+    sig = numba.types.CPointer(numba.types.float64)()  # type: ignore[no-untyped-call]
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return cgutils.alloca_once(  # type: ignore[no-untyped-call]
+            builder, context.get_value_type(numba.types.float64), size=_HEIGHTS_CAP)
+
+    return sig, codegen
+
+
+#: The intrinsics as plain callables for the type checker (numba sees the same objects).
+data_pointer = cast(Callable[[Any], Any], _data_pointer)
+_height_buffer = cast(Callable[[], Any], _height_buffer_intrinsic)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def grid_table(rules: IntArray, lims: FloatArray) -> GridTable:
+    """A rule table and its ``lims`` as one value the inlined kernels take: ``(rules pointer,
+    n2, n1, row stride, column stride, lo1, hi1, lo2, hi2, out_lo, out_hi, n_out, default)``
+    (strides in elements; ``n_out = int(lims[6])``). The arrays must outlive it."""
+    return (data_pointer(rules), rules.shape[0], rules.shape[1],
+            rules.strides[0] // rules.itemsize, rules.strides[1] // rules.itemsize,
+            lims[0], lims[1], lims[2], lims[3], lims[4], lims[5], int(lims[6]), lims[7])
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _cell(x1: float, x2: float, n1: int, n2: int, lims: FloatArray
-          ) -> tuple[int, int, float, float]:
+def _cell(x1: float, x2: float, tab: GridTable) -> tuple[int, int, float, float]:
     """Clip the inputs and locate them: grid cell (k1, k2) and fractions (f1, f2) in it."""
-    lo1 = lims[0]
-    hi1 = lims[1]
-    lo2 = lims[2]
-    hi2 = lims[3]
+    n2 = tab[1]
+    n1 = tab[2]
+    lo1 = tab[5]
+    hi1 = tab[6]
+    lo2 = tab[7]
+    hi2 = tab[8]
     if x1 < lo1:
         x1 = lo1
     elif x1 > hi1:
@@ -115,19 +193,48 @@ def _cell(x1: float, x2: float, n1: int, n2: int, lims: FloatArray
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _centroid(k1: int, k2: int, f1: float, f2: float, rules: IntArray,
-              lims: FloatArray) -> float:
+def _height(
+    j: int, la: int, wa: float, lb: int, wb: float, lc: int, wc: float, ld: int, wd: float
+) -> float:
+    """Clip height of output label j: the largest strength of the four rules naming it."""
+    return max(
+        max(wa if la == j else 0.0, wb if lb == j else 0.0),
+        max(wc if lc == j else 0.0, wd if ld == j else 0.0),
+    )
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _accumulate(ha: float, pa: float, qa: float, ca: float, hb: float, fj: float, area: float,
+                parea: float, moment: float
+                ) -> tuple[float, float, float, float, float, float]:
+    """Add segment j (clip heights ``ha``, ``hb``; ``ha``'s :func:`_edge_terms`) to the
+    sums of the centroid, unless both heights are 0; returns ``hb``'s terms and the sums."""
+    pb, qb, cb = _edge_terms(hb)
+    if ha > 0.0 or hb > 0.0:
+        ar, mo = _segment(ha, pa, qa, ca, hb, pb, cb)  # segment_integrals(ha, hb)
+        area += ar
+        parea += fj * ar
+        moment += mo
+    return pb, qb, cb, area, parea, moment
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _centroid(k1: int, k2: int, f1: float, f2: float, tab: GridTable) -> float:
     """Exact centroid of the aggregate of the (at most) four rules of cell (k1, k2)."""
+    rp = tab[0]
+    rs = tab[3]
+    cs = tab[4]
     g1 = 1.0 - f1
     g2 = 1.0 - f2
     # the (at most) four rules that fire, with their min-AND strengths
-    la = rules[k2, k1]
+    i00 = k2 * rs + k1 * cs
+    la = rp[i00]
     wa = min(g1, g2)
-    lb = rules[k2, k1 + 1]
+    lb = rp[i00 + cs]
     wb = min(f1, g2)
-    lc = rules[k2 + 1, k1]
+    lc = rp[i00 + rs]
     wc = min(g1, f2)
-    ld = rules[k2 + 1, k1 + 1]
+    ld = rp[i00 + rs + cs]
     wd = min(f1, f2)
     if la < 0:
         wa = 0.0
@@ -139,7 +246,7 @@ def _centroid(k1: int, k2: int, f1: float, f2: float, rules: IntArray,
         wd = 0.0
     # the fired labels span lmin .. lmax; visit the segments between adjacent output peaks
     # from lmin - 1 to lmax (each is [p_j, p_j+1]); segments with no fired end are skipped
-    n_out = int(lims[6])
+    n_out = tab[11]
     lmin = n_out
     lmax = -1
     if wa > 0.0:
@@ -154,27 +261,74 @@ def _centroid(k1: int, k2: int, f1: float, f2: float, rules: IntArray,
     if wd > 0.0:
         lmin = min(lmin, ld)
         lmax = max(lmax, ld)
+    j = max(lmin - 1, 0)
+    jend = min(lmax, n_out - 2)
     area = 0.0
     parea = 0.0
     moment = 0.0
-    j = max(lmin - 1, 0)
-    jend = min(lmax, n_out - 2)
-    ha = _height(j, la, wa, lb, wb, lc, wc, ld, wd)
-    while j <= jend:
-        hb = _height(j + 1, la, wa, lb, wb, lc, wc, ld, wd)
-        if ha > 0.0 or hb > 0.0:
-            ar, mo = segment_integrals(ha, hb)
-            area += ar
-            parea += j * ar
-            moment += mo
-        ha = hb
-        j += 1
+    fj = float(j)  # j as a float, counted alongside (exact): no conversion per segment
+    if n_out < _HEIGHTS_CAP:
+        # the clip heights of all labels gathered once into a buffer (four stores) rather
+        # than by scanning the four rules for every label: the same maxima
+        h = _height_buffer()
+        for i in range(n_out + 1):
+            h[i] = 0.0
+        if wa > 0.0:
+            h[la] = wa
+        if wb > 0.0:
+            h[lb] = max(h[lb], wb)
+        if wc > 0.0:
+            h[lc] = max(h[lc], wc)
+        if wd > 0.0:
+            h[ld] = max(h[ld], wd)
+        ha = h[j]
+        pa, qa, ca = _edge_terms(ha)
+        while j <= jend:
+            hb = h[j + 1]
+            pa, qa, ca, area, parea, moment = _accumulate(ha, pa, qa, ca, hb, fj, area,
+                                                          parea, moment)
+            ha = hb
+            j += 1
+            fj += 1.0
+    else:
+        ha = _height(j, la, wa, lb, wb, lc, wc, ld, wd)
+        pa, qa, ca = _edge_terms(ha)
+        while j <= jend:
+            hb = _height(j + 1, la, wa, lb, wb, lc, wc, ld, wd)
+            pa, qa, ca, area, parea, moment = _accumulate(ha, pa, qa, ca, hb, fj, area,
+                                                          parea, moment)
+            ha = hb
+            j += 1
+            fj += 1.0
     if area <= 0.0:
-        return lims[7]
-    lo = lims[4]
+        return tab[12]
+    lo = tab[9]
     # centroid = sum(p_j A_j + d M_j) / sum(A_j), p_j = lo + j d, d = (hi - lo) / (n_out - 1)
     # (the factor d of dy cancels)
-    return lo + (lims[5] - lo) * (parea + moment) / (area * (n_out - 1))
+    return lo + (tab[10] - lo) * (parea + moment) / (area * (n_out - 1))
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def grid_eval(x1: float, x2: float, tab: GridTable) -> float:
+    """:func:`eval_uniform_grid` on a :func:`grid_table` (inlined by the compiled loops)."""
+    if x1 != x1 or x2 != x2:
+        return np.nan
+    k1, k2, f1, f2 = _cell(x1, x2, tab)
+    return _centroid(k1, k2, f1, f2, tab)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def grid_pair(x1: float, x2: float, tab_a: GridTable, tab_b: GridTable) -> tuple[float, float]:
+    """:func:`eval_uniform_pair` on two :func:`grid_table` values (inlined by the loops)."""
+    if x1 != x1 or x2 != x2:
+        return np.nan, np.nan
+    k1, k2, f1, f2 = _cell(x1, x2, tab_a)
+    ya = _centroid(k1, k2, f1, f2, tab_a)
+    if (tab_b[1] == tab_a[1] and tab_b[2] == tab_a[2] and tab_b[5] == tab_a[5]
+            and tab_b[6] == tab_a[6] and tab_b[7] == tab_a[7] and tab_b[8] == tab_a[8]):
+        return ya, _centroid(k1, k2, f1, f2, tab_b)
+    k1, k2, f1, f2 = _cell(x1, x2, tab_b)
+    return ya, _centroid(k1, k2, f1, f2, tab_b)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -198,13 +352,10 @@ def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -
         Exact centroid of the aggregated output over the output universe; ``lims[7]`` when no
         rule fires; NaN when an input is NaN.
     """
-    if x1 != x1 or x2 != x2:
-        return np.nan
-    k1, k2, f1, f2 = _cell(x1, x2, rules.shape[1], rules.shape[0], lims)
-    return _centroid(k1, k2, f1, f2, rules, lims)
+    return grid_eval(x1, x2, grid_table(rules, lims))
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def eval_uniform_pair(x1: float, x2: float, rules_a: IntArray, lims_a: FloatArray,
                       rules_b: IntArray, lims_b: FloatArray) -> tuple[float, float]:
     """Two systems on the same inputs, e.g. Δu and α of the self-tuning controller.
@@ -214,16 +365,7 @@ def eval_uniform_pair(x1: float, x2: float, rules_a: IntArray, lims_a: FloatArra
     grid (as the paper's two do) the inputs are located once and only the rule look-ups and
     the output integration are done twice.
     """
-    if x1 != x1 or x2 != x2:
-        return np.nan, np.nan
-    k1, k2, f1, f2 = _cell(x1, x2, rules_a.shape[1], rules_a.shape[0], lims_a)
-    ya = _centroid(k1, k2, f1, f2, rules_a, lims_a)
-    if (rules_b.shape[0] == rules_a.shape[0] and rules_b.shape[1] == rules_a.shape[1]
-            and lims_b[0] == lims_a[0] and lims_b[1] == lims_a[1]
-            and lims_b[2] == lims_a[2] and lims_b[3] == lims_a[3]):
-        return ya, _centroid(k1, k2, f1, f2, rules_b, lims_b)
-    k1, k2, f1, f2 = _cell(x1, x2, rules_b.shape[1], rules_b.shape[0], lims_b)
-    return ya, _centroid(k1, k2, f1, f2, rules_b, lims_b)
+    return grid_pair(x1, x2, grid_table(rules_a, lims_a), grid_table(rules_b, lims_b))
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")

@@ -59,6 +59,7 @@ __all__ = [
     "rhs",
     "rk4_advance",
     "rk4_advance_ws",
+    "rk4_steps",
 ]
 
 STATE_NAMES: tuple[str, ...] = ("spool_lag", "spool", "spool_rate", "p_f", "p_n", "x", "v")
@@ -145,19 +146,22 @@ def pack(params: ServoParams) -> FloatArray:
     return p
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def orifice_root(dp: float, p_cr: float) -> float:
     """sgn(Δp) sqrt|Δp| with a laminar regularisation: Δp / (Δp² + p_cr²)^(1/4) [Pa^0.5]."""
     return dp / math.sqrt(math.sqrt(dp * dp + p_cr * p_cr))
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def supply_pressure(t: float, p: FloatArray) -> float:
     """P_s(t) = P_s + ripple sin(2π f t) [Pa]."""
+    if p[P_RIPA] == 0.0:
+        # P_s + 0 sin(..) is P_s to the bit (P_s > 0, the sine finite): no sine to evaluate
+        return p[P_PS]
     return p[P_PS] + p[P_RIPA] * math.sin(2.0 * math.pi * p[P_RIPF] * t)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def valve_flows(xv: float, pf: float, pn: float, ps: float, p: FloatArray) -> tuple[float, float]:
     """Flow into the full-bore side Q_f and out of the annulus side Q_n [m³/s], eqs. (2)-(3).
 
@@ -179,7 +183,7 @@ def valve_flows(xv: float, pf: float, pn: float, ps: float, p: FloatArray) -> tu
     return qf, qn
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def friction_force(v: float, p: FloatArray) -> float:
     """Viscous plus smoothed Stribeck/Coulomb friction opposing v [N]."""
     f = p[P_B] * v
@@ -189,7 +193,7 @@ def friction_force(v: float, p: FloatArray) -> float:
     return f
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def stop_force(x: float, v: float, p: FloatArray) -> float:
     """End-stop cushion force (spring-damper beyond 0 and L, pushing only) [N]."""
     if x < 0.0:
@@ -201,7 +205,7 @@ def stop_force(x: float, v: float, p: FloatArray) -> float:
     return 0.0
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def floor_factor(pressure: float, floor: float) -> float:
     """Factor on a falling chamber pressure's rate: 0 at the floor, 1 from floor + band up.
 
@@ -217,7 +221,7 @@ def floor_factor(pressure: float, floor: float) -> float:
     return z * z * (3.0 - 2.0 * z)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def rhs(t: float, x: FloatArray, u: float, p: FloatArray, dx: FloatArray) -> None:
     """Write dx/dt of the nonlinear servo into ``dx`` (no allocation).
 
@@ -233,6 +237,11 @@ def rhs(t: float, x: FloatArray, u: float, p: FloatArray, dx: FloatArray) -> Non
         Packed parameters from :func:`pack`.
     dx : float64[N_STATE]
         Output derivative.
+
+    ``x``, ``p`` and ``dx`` may also be data pointers (the compiled loops pass pointers: a
+    call with arrays passes each array's shape, strides and owner too). A chamber whose
+    capacitance is 0 (no hose, the piston deep in the cushion) gives an infinite rate, so
+    the loops report a divergence (numpy's division, not Python's ZeroDivisionError).
 
     Notes
     -----
@@ -287,21 +296,18 @@ def rhs(t: float, x: FloatArray, u: float, p: FloatArray, dx: FloatArray) -> Non
     dx[S_V] = force / p[P_M]
 
 
-@numba.njit(cache=True, nogil=True)
-def rk4_advance_ws(t: float, x: FloatArray, u: float, p: FloatArray, dt: float, n_sub: int,
-                   work: FloatArray) -> bool:
-    """Advance ``x`` in place over ``dt`` with ``n_sub`` classical RK4 substeps, ``u`` held.
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def rk4_steps(t: float, x: FloatArray, u: float, p: FloatArray, dt: float, n_sub: int,
+              k1: FloatArray, k2: FloatArray, k3: FloatArray, k4: FloatArray,
+              xt: FloatArray) -> bool:
+    """Advance ``x`` (N_STATE values) in place over ``dt`` with ``n_sub`` classical RK4
+    substeps, ``u`` held; ``k1`` .. ``xt`` are N_STATE scratch values each.
 
-    ``work`` is a (5, N_STATE) float64 scratch array (no allocation). Returns False if the
-    state became non-finite (the caller raises :class:`SimulationDivergedError`).
+    The one RK4 of the model: :func:`rk4_advance_ws` calls it with arrays, the closed-loop
+    kernels with data pointers. Returns False if the state became non-finite.
     """
     h = dt / n_sub
-    k1 = work[0]
-    k2 = work[1]
-    k3 = work[2]
-    k4 = work[3]
-    xt = work[4]
-    n = x.shape[0]
+    n = N_STATE
     for j in range(n_sub):
         tj = t + j * h
         rhs(tj, x, u, p, k1)
@@ -320,6 +326,17 @@ def rk4_advance_ws(t: float, x: FloatArray, u: float, p: FloatArray, dt: float, 
         if not math.isfinite(x[i]):
             return False
     return True
+
+
+@numba.njit(cache=True, nogil=True)
+def rk4_advance_ws(t: float, x: FloatArray, u: float, p: FloatArray, dt: float, n_sub: int,
+                   work: FloatArray) -> bool:
+    """Advance ``x`` in place over ``dt`` with ``n_sub`` classical RK4 substeps, ``u`` held.
+
+    ``work`` is a (5, N_STATE) float64 scratch array (no allocation). Returns False if the
+    state became non-finite (the caller raises :class:`SimulationDivergedError`).
+    """
+    return rk4_steps(t, x, u, p, dt, n_sub, work[0], work[1], work[2], work[3], work[4])
 
 
 @numba.njit(cache=True, nogil=True)

@@ -121,6 +121,10 @@ def _batch_linear(
                                 lps[i], u0s[i], no_xop[:nx], rbuf, nz, y0s[i], x[:nx],
                                 xn[:nx], ring, yv, uv, av, no_x[:, :nx])
             if bad[i] >= 0:
+                for k in range(bad[i], n_t):
+                    yv[k] = np.nan
+                    uv[k] = np.nan
+                    av[k] = np.nan
                 for m in range(metrics.shape[1]):
                     metrics[i, m] = np.nan
                 for m in range(N_TAIL):
@@ -189,6 +193,10 @@ def _batch_nonlinear(
                                    p, ts, ds[i], fs[i], n_subs[i], u0s[i], rbuf, nz, force,
                                    x, work, ring, yv, uv, av, no_x)
             if bad[i] >= 0:
+                for k in range(bad[i], n_t):
+                    yv[k] = np.nan
+                    uv[k] = np.nan
+                    av[k] = np.nan
                 for m in range(metrics.shape[1]):
                     metrics[i, m] = np.nan
                 for m in range(N_TAIL):

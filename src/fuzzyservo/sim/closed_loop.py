@@ -13,7 +13,7 @@ Plants:
   :func:`fuzzyservo.plant.zoh.discretize` (the package's one ZOH):
   x_{k+1} = Φ x_k + Γ_0 u_{k-d} + Γ_1 u_{k-d-1}.
 - :class:`NonlinearPlant`: the two-chamber model of :mod:`fuzzyservo.plant.nonlinear`,
-  integrated with its RK4 (``rk4_advance_ws``) between samples, the interval split at t_k + f
+  integrated with its RK4 (``rk4_steps``) between samples, the interval split at t_k + f
   so the delayed command switches exactly; the load force F_ext may follow a profile.
 
 :func:`run_linear` and :func:`run_nonlinear` are the compiled single-run loops; :func:`simulate`
@@ -32,8 +32,9 @@ import numba
 import numpy as np
 
 from .._typing import ArrayLike, FloatArray, IntArray
-from ..control.base import STATE_ALPHA, PackedController, controller_step
+from ..control.base import STATE_ALPHA, PackedController, controller_step, controller_tables
 from ..errors import InputError, ParameterError, SimulationDivergedError
+from ..fuzzy.kernels import data_pointer
 from ..plant.nonlinear import (
     N_PARAMS,
     P_FEXT,
@@ -41,7 +42,7 @@ from ..plant.nonlinear import (
     P_RES,
     STATE_NAMES,
     pack,
-    rk4_advance_ws,
+    rk4_steps,
 )
 from ..plant.zoh import check_delay, discretize, split_delay
 from .references import (
@@ -305,7 +306,78 @@ def _delayed(ubuf: FloatArray, w: int, k: int, d: int, u_init: float) -> tuple[f
     return u0, u1
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _output_n(lp: Any, x: Any, y0: float, n: int) -> float:
+    """y0 + C x of a packed linear plant (pointers ``lp``, ``x``), summed in index order."""
+    o_c = 2 + n * n + 2 * n
+    y = y0
+    for i in range(n):
+        y += lp[o_c + i] * x[i]
+    return y
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _advance_n(lp: Any, x: Any, xn: Any, u0: float, u1: float, n: int) -> None:
+    """x <- Φ x + Γ0 u0 + Γ1 u1 of a packed linear plant (pointers; ``xn`` scratch), each
+    row summed as Γ0 u0 + Γ1 u1 + Φ_i0 x_0 + Φ_i1 x_1 + ... in that order."""
+    o_g0 = 2 + n * n
+    o_g1 = o_g0 + n
+    for i in range(n):
+        acc = lp[o_g0 + i] * u0 + lp[o_g1 + i] * u1
+        row = 2 + i * n
+        for j in range(n):
+            acc += lp[row + j] * x[j]
+        xn[i] = acc
+    for i in range(n):
+        x[i] = xn[i]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def linear_output(lp: Any, x: Any, y0: float, n: int) -> float:
+    """:func:`_output_n` with the loop unrolled for n <= 8 states (the same sums)."""
+    if n == 1:
+        return _output_n(lp, x, y0, 1)
+    if n == 2:
+        return _output_n(lp, x, y0, 2)
+    if n == 3:
+        return _output_n(lp, x, y0, 3)
+    if n == 4:
+        return _output_n(lp, x, y0, 4)
+    if n == 5:
+        return _output_n(lp, x, y0, 5)
+    if n == 6:
+        return _output_n(lp, x, y0, 6)
+    if n == 7:
+        return _output_n(lp, x, y0, 7)
+    if n == 8:
+        return _output_n(lp, x, y0, 8)
+    return _output_n(lp, x, y0, n)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def linear_advance(lp: Any, x: Any, xn: Any, u0: float, u1: float, n: int) -> None:
+    """:func:`_advance_n` with the loops unrolled for n <= 8 states (the same sums)."""
+    if n == 1:
+        _advance_n(lp, x, xn, u0, u1, 1)
+    elif n == 2:
+        _advance_n(lp, x, xn, u0, u1, 2)
+    elif n == 3:
+        _advance_n(lp, x, xn, u0, u1, 3)
+    elif n == 4:
+        _advance_n(lp, x, xn, u0, u1, 4)
+    elif n == 5:
+        _advance_n(lp, x, xn, u0, u1, 5)
+    elif n == 6:
+        _advance_n(lp, x, xn, u0, u1, 6)
+    elif n == 7:
+        _advance_n(lp, x, xn, u0, u1, 7)
+    elif n == 8:
+        _advance_n(lp, x, xn, u0, u1, 8)
+    else:
+        _advance_n(lp, x, xn, u0, u1, n)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def run_linear(
     kind: int, cp: FloatArray, cs: FloatArray,
     du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
@@ -322,21 +394,25 @@ def run_linear(
     ``noise`` is empty or one value per sample; ``x_out`` is (len(r), n) to keep states or
     (0, n) not to. The plant is not advanced past the last sample. Returns the index of the
     first sample with a non-finite state, or -1.
+
+    The controller (:func:`~fuzzyservo.control.controller_step`) and the plant's update are
+    inlined, on data pointers (nothing reference-counted per sample); the plant's sums are
+    unrolled for up to 8 states, in the same order as for more.
     """
     n = int(lp[0])
     d = min(int(lp[1]), r.shape[0])  # a command delayed past the run never arrives
-    o_phi = 2
-    o_g0 = o_phi + n * n
-    o_g1 = o_g0 + n
-    o_c = o_g1 + n
     keep_x = x_out.shape[0] > 0
     has_noise = noise.shape[0] > 0
     last = r.shape[0] - 1
+    pp = data_pointer(cp)
+    sp = data_pointer(cs)
+    lpp = data_pointer(lp)
+    xp = data_pointer(x)
+    xnp = data_pointer(xn)
+    du, alpha = controller_tables(du_rules, du_lims, a_rules, a_lims)
     w = 0
     for k in range(r.shape[0]):
-        y = y0
-        for i in range(n):
-            y += lp[o_c + i] * x[i]
+        y = linear_output(lpp, xp, y0, n)
         if keep_x:
             for i in range(n):
                 x_out[k, i] = x_op[i] + x[i]
@@ -344,10 +420,10 @@ def run_linear(
             return k
         if has_noise:
             y += noise[k]
-        u = controller_step(kind, cp, cs, r[k], y, du_rules, du_lims, a_rules, a_lims)
+        u = controller_step(kind, pp, sp, r[k], y, du, alpha)
         y_out[k] = y
         u_out[k] = u
-        a_out[k] = cs[STATE_ALPHA]
+        a_out[k] = sp[STATE_ALPHA]
         if k == last:
             break
         ubuf[w] = u
@@ -355,16 +431,7 @@ def run_linear(
         w += 1
         if w == ubuf.shape[0]:
             w = 0
-        u0 -= u_op
-        u1 -= u_op
-        for i in range(n):
-            acc = lp[o_g0 + i] * u0 + lp[o_g1 + i] * u1
-            row = o_phi + i * n
-            for j in range(n):
-                acc += lp[row + j] * x[j]
-            xn[i] = acc
-        for i in range(n):
-            x[i] = xn[i]
+        linear_advance(lpp, xp, xnp, u0 - u_op, u1 - u_op, n)
     return -1
 
 
@@ -383,7 +450,7 @@ def substep_split(n_sub: int, f: float, ts: float) -> tuple[int, int]:
     return n1, n0
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def run_nonlinear(
     kind: int, cp: FloatArray, cs: FloatArray,
     du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
@@ -396,7 +463,9 @@ def run_nonlinear(
     its external-force entry follows ``force`` when that is not empty).
 
     Delay τ = d ts + f; ``n_sub`` RK4 substeps per sample (split in proportion at f);
-    ``work`` is a (5, N_STATE) scratch array. Other arguments as :func:`run_linear`.
+    ``work`` is a (5, N_STATE) scratch array. Other arguments as :func:`run_linear`. The
+    plant's :func:`~fuzzyservo.plant.nonlinear.rk4_steps` gets data pointers, the controller
+    is inlined as in :func:`run_linear`.
     Returns the index of the first sample whose state is non-finite, or -1.
     """
     keep_x = x_out.shape[0] > 0
@@ -407,6 +476,17 @@ def run_nonlinear(
     n1, n0 = substep_split(n_sub, f, ts)
     nx = x.shape[0]
     last = r.shape[0] - 1
+    pp = data_pointer(cp)
+    sp = data_pointer(cs)
+    du, alpha = controller_tables(du_rules, du_lims, a_rules, a_lims)
+    # the plant's arrays as pointers for the RK4 (a call passes 3 values, not 7 per array)
+    xp = data_pointer(x)
+    plp = data_pointer(p)
+    k1 = data_pointer(work[0])
+    k2 = data_pointer(work[1])
+    k3 = data_pointer(work[2])
+    k4 = data_pointer(work[3])
+    xt = data_pointer(work[4])
     w = 0
     for k in range(r.shape[0]):
         t = k * ts
@@ -418,10 +498,10 @@ def run_nonlinear(
             y += noise[k]
         if res > 0.0:
             y = res * math.floor(y / res + 0.5)
-        u = controller_step(kind, cp, cs, r[k], y, du_rules, du_lims, a_rules, a_lims)
+        u = controller_step(kind, pp, sp, r[k], y, du, alpha)
         y_out[k] = y
         u_out[k] = u
-        a_out[k] = cs[STATE_ALPHA]
+        a_out[k] = sp[STATE_ALPHA]
         if k == last:
             break
         ubuf[w] = u
@@ -433,10 +513,10 @@ def run_nonlinear(
             p[P_FEXT] = force[k]
         ok = True
         if f > 0.0:
-            ok = rk4_advance_ws(t, x, u1, p, f, n1, work)
-            ok = ok and rk4_advance_ws(t + f, x, u0, p, ts - f, n0, work)
+            ok = rk4_steps(t, xp, u1, plp, f, n1, k1, k2, k3, k4, xt)
+            ok = ok and rk4_steps(t + f, xp, u0, plp, ts - f, n0, k1, k2, k3, k4, xt)
         else:
-            ok = rk4_advance_ws(t, x, u0, p, ts, n_sub, work)
+            ok = rk4_steps(t, xp, u0, plp, ts, n_sub, k1, k2, k3, k4, xt)
         if not ok:
             return k + 1
     return -1
