@@ -178,8 +178,8 @@ class RobustRecord:
         Where the set came from (the sweep spec's path, as given).
     digest : str
         SHA-256 of everything that defines the set's plants, delays, reference and noise
-        (:func:`fuzzyservo.sweep.robust.set_digest`: the spec's canonical record without its
-        controllers, and every point's values and noise seed).
+        (:func:`fuzzyservo.sweep.robust.set_digest`: the plant kind, nominal parameter
+        values, run settings, and every point's values and noise seed).
     points : int
         Number of plants in the set.
     statistic : str

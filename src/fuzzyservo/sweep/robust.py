@@ -19,7 +19,7 @@ import hashlib
 import json
 from dataclasses import replace
 
-from ..analysis.autotune import TuningSetup
+from ..analysis.autotune import TuningSetup, params_digest
 from ..analysis.robust import MAX_ROBUST_POINTS, RobustRecord, RobustSet, parse_statistic
 from ..errors import ParameterError
 from ..sim.closed_loop import time_grid
@@ -30,17 +30,13 @@ from .spec import SweepSpec
 
 __all__ = ["MAX_ROBUST_POINTS", "robust_set", "robust_setup", "set_digest"]
 
-#: Keys of the spec's canonical record that do not change a plant of the set (its title, its
-#: chunking, the controllers a sweep of it compares).
-_NOT_THE_SET = ("name", "chunk", "controllers")
-
-
 def set_digest(spec: SweepSpec) -> str:
-    """SHA-256 of everything that defines the spec's set of plants: its canonical record
-    (:meth:`SweepSpec.canonical`) without its title, chunk size and controllers (so that
-    adding a design to compare to the spec keeps the record of a design tuned on it true),
-    and every point's drawn values and noise seed (so that a change of how points are drawn
-    changes the digest even when the spec's text does not).
+    """SHA-256 of what defines the spec's set of plants, and nothing else: the plant kind,
+    every nominal parameter value (whatever set and overrides gave it), start, sample time,
+    duration, RK4 substep, reference, nominal delay and noise, and every point's drawn values
+    and noise seed. Not the spec's title, chunking or controllers (adding a design to compare
+    keeps the record of a design tuned on the set true), nor how the spec's text or canonical
+    record is laid out; a change of how points are drawn changes it.
 
     Raises
     ------
@@ -52,9 +48,11 @@ def set_digest(spec: SweepSpec) -> str:
 
 
 def _digest(spec: SweepSpec, pts: Points) -> str:
-    rec = {k: v for k, v in spec.canonical().items() if k not in _NOT_THE_SET}
-    rec["points"] = {name: [repr(float(x)) for x in vals] for name, vals in pts.values.items()}
-    rec["noise_seeds"] = [int(x) for x in pts.noise_seed]
+    rec = {"plant": spec.plant, "params": params_digest(spec.nominal), "start": spec.start,
+           "ts": spec.ts, "duration": spec.duration, "substep": spec.substep,
+           "reference": spec.reference, "delay": spec.delay, "noise_std": spec.noise_std,
+           "points": {name: [repr(float(x)) for x in vals] for name, vals in pts.values.items()},
+           "noise_seeds": [int(x) for x in pts.noise_seed]}
     text = json.dumps(rec, sort_keys=True, allow_nan=False)
     return hashlib.sha256(text.encode()).hexdigest()
 
