@@ -47,15 +47,19 @@ def test_toml_round_trip(tmp_path: Path, tuned_stfpi: TunedGains) -> None:
 
 def test_committed_gain_files_load() -> None:
     files = sorted(GAINS_DIR.glob("*.toml"))
-    assert len(files) == 12  # 6 designs of the paper study (study.runner.GAIN_FILES) x 2 plants
+    # 6 designs of the paper study (study.runner.GAIN_FILES) x 2 plants, and the self-tuning
+    # fuzzy PI tuned on each plant's C8 robust set (tune --robust; tests/sweep/test_robust.py)
+    assert len(files) == 14
     for f in files:
         t = read_gains_toml(f)
-        design = "-os0" if f.stem.endswith("-os0") else ""
+        design = next((d for d in ("-os0", "-robust") if f.stem.endswith(d)), "")
         assert f.stem == f"{t.setup.plant}-{t.controller}{design}"
+        assert (t.setup.robust is not None) == (design == "-robust")
         # the gains are exactly the registry kind's (a pid file's b = c = 1 are implied)
         assert tuple(t.gains) == controller_kind(t.controller).gain_names
         # "-os0": tuned for the paper's "no overshoot" (<= 0.5 %); the rest like its PID
-        limit = 0.5 if design else 10.0
+        # (a robust file's overshoot is the largest over its set)
+        limit = 0.5 if design == "-os0" else 10.0
         assert t.setup.objective == "itae" and t.setup.constraints.max_overshoot == limit
         assert t.feasible and t.metrics["overshoot"] <= limit + 1e-9
 

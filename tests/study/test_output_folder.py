@@ -22,7 +22,7 @@ from fuzzyservo import __version__
 from fuzzyservo._io import sha256_file
 from fuzzyservo.cli import main
 from fuzzyservo.study.cache import CacheEntryError, load_study
-from fuzzyservo.study.runner import MANIFEST, default_gains_dir, folder_status
+from fuzzyservo.study.runner import GAIN_FILES, MANIFEST, default_gains_dir, folder_status
 from tests.helpers import start_fuzzyservo, wait_for_temporary
 
 MARKER = "/tmp/fuzzyservo-cache-ran-code"  # noqa: S108  (what the crafted pickle would create)
@@ -53,7 +53,8 @@ def test_make_reproduce_writes_a_manifest_that_covers_every_output(reproduced: P
     assert set(doc["outputs"]) == _visible(reproduced) - {MANIFEST}
     for rel, digest in doc["outputs"].items():
         assert sha256_file(reproduced / rel) == digest
-    committed = {p.name: sha256_file(p) for p in default_gains_dir().glob("*.toml")}
+    committed = {p.name: sha256_file(p) for p in default_gains_dir().glob("*.toml")
+                 if p.stem.split("-", 1)[1] in GAIN_FILES}  # the study's (not the robust)
     assert {Path(k).name: v["sha256"] for k, v in doc["gains"].items()} == committed
 
 

@@ -267,6 +267,34 @@ def test_the_set_digest_ignores_the_compared_controllers(tmp_path: Path, spec: S
     assert set_digest(load_spec(_write(tmp_path, other, "b.toml"))) != set_digest(spec)
 
 
+# ---- the shipped robust designs --------------------------------------------------------------
+
+ROOT = Path(__file__).resolve().parents[2]
+GAINS = ROOT / "src" / "fuzzyservo" / "data" / "gains"
+
+
+@pytest.mark.parametrize("plant", ["linear", "nonlinear"])
+def test_a_shipped_robust_design_is_its_sets_and_meets_its_record(plant: str) -> None:
+    """The committed robust self-tuning fuzzy PI was tuned on the shipped set its record names
+    (the digest covers every drawn plant, so a change of the draws fails here), and running
+    that set again gives the recorded worst case: feasible on every plant."""
+    gf = read_gains_file(GAINS / f"{plant}-stfpi-robust.toml")
+    assert gf.tuned is not None and gf.tuned.setup.robust is not None
+    tuned, record = gf.tuned, gf.tuned.setup.robust
+    assert record.source == f"src/fuzzyservo/data/sweeps/c8-robust-set-{plant}.toml"
+    spec = load_spec(ROOT / record.source)
+    assert record.digest == set_digest(spec) and record.points == spec.n_points
+    assert record.statistic == "worst" and tuned.feasible
+    rset, _ = robust_set(spec, source=record.source, statistic=record.statistic)
+    ev = make_evaluator(tuned.setup, spec.nominal, robust=rset)
+    names = tuned.setup.search_bounds().names
+    m = ev(np.array([[tuned.gains[n] for n in names]]))
+    assert constraint_violation(m, tuned.setup.constraints, tuned.setup.step)[0] == 0.0
+    # the tuner's batch and this one are the same compiled loops: equal to rounding
+    for name in ("itae", "itae_worst", "overshoot", "settling_time", "final_error_max"):
+        assert m[name][0] == pytest.approx(tuned.metrics[name], rel=1e-9)
+
+
 # ---- the command line ------------------------------------------------------------------------
 
 def test_tune_robust_writes_a_record_that_simulate_runs(
