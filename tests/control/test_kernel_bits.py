@@ -93,10 +93,10 @@ def _inputs(rng: np.random.Generator, lims: np.ndarray, n: int) -> list[tuple[fl
     return pts
 
 
-@pytest.mark.parametrize("n_out", [2, 3, 7, 9, 40, 63, 64, 65, 90])
+@pytest.mark.parametrize("n_out", [2, 3, 7, 9, 14, 15, 16, 17, 40, 90])
 def test_kernel_equals_the_previous_algorithm_bit_for_bit(n_out: int) -> None:
     """Random tables (rules -1 .. n_out - 1, so gaps, single labels and wide spans), both the
-    gathered heights (n_out < 64) and the scan kept for more labels."""
+    gathered heights (n_out < 16) and the scan kept for more labels."""
     rng = np.random.default_rng(1300 + n_out)
     for _ in range(30):
         rules, lims = _random_table(rng, n_out)
