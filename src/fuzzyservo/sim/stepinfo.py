@@ -150,11 +150,15 @@ def step_metrics_core(
         return
     t0 = t[0]
 
-    # Peak: largest excursion from y0 (first sample attaining it); y's range for the no-step test.
+    # Peak: largest excursion from y0 (first sample attaining it); y's range for the no-step
+    # test; in the same pass the largest excursion beyond y_final in the step's direction.
+    span = y_final - y0
+    s = 1.0 if span > 0.0 else -1.0
     k_pk = 0
     d_max = -1.0
     y_min = y[0]
     y_max = y[0]
+    os_max = 0.0
     for k in range(n):
         d = abs(y[k] - y0)
         if d > d_max:
@@ -162,13 +166,14 @@ def step_metrics_core(
             k_pk = k
         y_min = min(y_min, y[k])
         y_max = max(y_max, y[k])
+        d = s * (y[k] - y_final)
+        if d > os_max:
+            os_max = d
     out[_PEAK] = y[k_pk]
 
-    span = y_final - y0
     scale = max(1.0, abs(y0), abs(y_final), y_max - y_min)
     if abs(span) > NO_STEP_RTOL * scale and math.isfinite(span):
         out[_TPEAK] = t[k_pk] - t0
-        s = 1.0 if span > 0.0 else -1.0
         # Rise time: first samples at or beyond the two thresholds (python-control's rule).
         lvl_lo = y0 + rise_lo * span
         lvl_hi = y0 + rise_hi * span
@@ -206,11 +211,6 @@ def step_metrics_core(
         elif last2 < n - 1 and t[last2] - t0 <= t_hold:
             out[_SETTLE2] = t[last2 + 1] - t0
         # Overshoot: largest excursion beyond the target in the step's direction [%].
-        os_max = 0.0
-        for k in range(n):
-            d = s * (y[k] - y_final)
-            if d > os_max:
-                os_max = d
         out[_OS] = 100.0 * os_max / abs(span)
 
     out[_ESS] = r[n - 1] - y[n - 1]
@@ -240,13 +240,15 @@ def step_metrics_core(
         u_max = 0.0
         u_sq = 0.0
         u_tv = 0.0
-        for k in range(n):
+        for k in range(n - 1):
             a = abs(u[k])
             if a > u_max:
                 u_max = a
-        for k in range(n - 1):
             u_sq += u[k] * u[k] * (t[k + 1] - t[k])
             u_tv += abs(u[k + 1] - u[k])
+        a = abs(u[n - 1])
+        if a > u_max:
+            u_max = a
         out[_UMAX] = u_max
         out[_USQ] = u_sq
         out[_UTV] = u_tv
@@ -263,7 +265,7 @@ _PW_BLOCK = 128
 TAIL_WORK = 64
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _stream_next(mode: int, t: FloatArray, y: FloatArray, k: int, side: int, t_last: float,
                  mean: float, h: float) -> tuple[float, int, int, float]:
     """Next value of a stream and the stream's new state ``(k, side, t_last)``.
@@ -282,7 +284,7 @@ def _stream_next(mode: int, t: FloatArray, y: FloatArray, k: int, side: int, t_l
         k += 1
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _block_stream(mode: int, n: int, t: FloatArray, y: FloatArray, k: int, side: int,
                   t_last: float, mean: float, h: float) -> tuple[float, int, int, float]:
     """numpy's sum of a block of ``n <= 128`` stream values; the sum and the new state."""
@@ -327,7 +329,7 @@ def _block_stream(mode: int, n: int, t: FloatArray, y: FloatArray, k: int, side:
     return res, k, side, t_last
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _pairwise_stream(mode: int, n: int, t: FloatArray, y: FloatArray, k: int, side: int,
                      t_last: float, mean: float, h: float, work: FloatArray) -> float:
     """Sum of the next ``n`` values of a stream (:func:`_stream_next`) in numpy's pairwise
