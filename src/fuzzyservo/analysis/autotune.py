@@ -420,9 +420,7 @@ def _robust_evaluator(setup: TuningSetup, kind: ControllerKind, robust: RobustSe
                                  reference=ref, duration=setup.duration,
                                  delay=robust.delays[j],
                                  noise=None if robust.noise is None else robust.noise[j],
-                                 keep_traces=True, rise=robust.rise,
-                                 settle_band=robust.settle_band,
-                                 settle_band_2=robust.settle_band_2)
+                                 keep_traces=True)
             parts.append(_batch_metrics(res))
             failed.append(res.diverged)
         per_plant = {k: np.concatenate([p[k] for p in parts]).reshape(-1, m) for k in parts[0]}
@@ -465,9 +463,16 @@ def make_evaluator(setup: TuningSetup, params: ServoParams, *,
         size than recorded.
     """
     _check_robust(setup, robust)
+    return _evaluator_of(setup, setup.kind, params, systems, robust)
+
+
+def _evaluator_of(setup: TuningSetup, kind: ControllerKind, params: ServoParams,
+                  systems: Mapping[str, KernelSystem] | None,
+                  robust: RobustSet | None) -> Evaluator:
+    """The evaluator of ``kind``: on the set ``robust`` if given, else on ``setup``'s plant."""
     if robust is not None:
-        return _robust_evaluator(setup, setup.kind, robust, systems)
-    return _evaluator(setup, setup.kind, params, systems)
+        return _robust_evaluator(setup, kind, robust, systems)
+    return _evaluator(setup, kind, params, systems)
 
 
 def _check_robust(setup: TuningSetup, robust: RobustSet | None) -> None:
@@ -1012,9 +1017,7 @@ def tune_controller(setup: TuningSetup, params: ServoParams, *,
                           at_bounds=bounds.at_bounds(g[0]), restart_spread=d.restart_spread)
 
     def evaluator_of(k: ControllerKind) -> Evaluator:
-        if robust is not None:
-            return _robust_evaluator(setup, k, robust, systems)
-        return _evaluator(setup, k, params, systems)
+        return _evaluator_of(setup, k, params, systems, robust)
 
     stages: list[StageRecord] = []
     if kind.tuning == "search":

@@ -23,7 +23,6 @@ This module is numpy only: it aggregates and describes; the closed loops are run
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -224,19 +223,12 @@ class RobustSet:
         on the run's time grid [m]; None: none.
     labels : tuple of int
         What each plant is (the sweep point's index).
-    rise : (float, float)
-        Rise-time thresholds as fractions of the step [-].
-    settle_band, settle_band_2 : float
-        Settling bands as fractions of the step [-].
     """
 
     plants: tuple[Any, ...]
     delays: FloatArray
     noise: FloatArray | None = None
     labels: tuple[int, ...] = ()
-    rise: tuple[float, float] = (0.1, 0.9)
-    settle_band: float = 0.02
-    settle_band_2: float = 0.05
 
     def __post_init__(self) -> None:
         m = len(self.plants)
@@ -258,10 +250,6 @@ class RobustSet:
             raise ParameterError(f"a robust set of {m} plants needs {m} labels, got "
                                  f"{len(labels)}")
         object.__setattr__(self, "labels", labels)
-        for name in ("settle_band", "settle_band_2"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise ParameterError(f"RobustSet.{name} must be finite and > 0, got {v!r}")
 
     def __len__(self) -> int:
         return len(self.plants)
