@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -25,6 +26,7 @@ import pytest
 from fuzzyservo.cli import main
 from fuzzyservo.sweep import load_spec, read_manifest, read_table, run_sweep, table_digest
 from fuzzyservo.sweep.dataset import chunk_path
+from fuzzyservo.sweep.spec import SAMPLING_SCHEME
 
 SPEC = """
 [sweep]
@@ -285,6 +287,20 @@ def test_refusals_leave_the_folder_as_it_was(spec_file: Path, tmp_path: Path,
     assert "holds a different sweep (its spec differs in seed)" in err
     assert len(err.strip().splitlines()) == 1
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+    # a sweep drawn by another sampling scheme (an older fuzzyservo) is never resumed into
+    older = tmp_path / "older"
+    shutil.copytree(out, older)
+    doc = json.loads((older / "manifest.json").read_text(encoding="utf-8"))
+    doc["spec"]["sampling"] = SAMPLING_SCHEME - 1
+    (older / "manifest.json").write_text(json.dumps(doc), encoding="utf-8")
+    kept = {p: p.read_bytes() for p in older.rglob("*") if p.is_file()}
+    assert main(["sweep", str(spec_file), "--out", str(older), "--resume",
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert (f"holds a sweep drawn by sampling scheme {SAMPLING_SCHEME - 1}; this fuzzyservo "
+            f"draws scheme {SAMPLING_SCHEME}") in err
+    assert len(err.strip().splitlines()) == 1
+    assert {p: p.read_bytes() for p in older.rglob("*") if p.is_file()} == kept
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "x.txt").write_text("x", encoding="utf-8")
     assert main(["sweep", str(spec_file), "--out", str(tmp_path / "junk")]) == 2

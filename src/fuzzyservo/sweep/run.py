@@ -57,7 +57,7 @@ from ..study.claims import (
 )
 from .dataset import Manifest, adopt, chunk_path, finished_files, read_manifest, write_chunk
 from .sampling import Points, points
-from .spec import SweepSpec
+from .spec import SAMPLING_SCHEME, SweepSpec
 
 __all__ = [
     "OUTCOMES",
@@ -267,6 +267,11 @@ def _check_folder(spec: SweepSpec, out: Path, resume: bool) -> Manifest | None:
             raise OutputError(f"{str(out)!r} already holds a sweep ({len(man.chunks)} of "
                               f"{man.n_chunks} chunks): add --resume to continue it, or give "
                               f"a new folder")
+        if man.spec.get("sampling") != SAMPLING_SCHEME:
+            raise InputError(f"{str(out)!r} holds a sweep drawn by sampling scheme "
+                             f"{man.spec.get('sampling', 0)}; this fuzzyservo draws scheme "
+                             f"{SAMPLING_SCHEME}, so --resume would mix two draws: give a new "
+                             f"folder")
         if man.digest != spec.digest:
             diff = sorted(k for k in set(man.spec) | set(spec.canonical())
                           if man.spec.get(k) != spec.canonical().get(k))

@@ -62,6 +62,7 @@ from ..sim.references import Step, parse_reference
 __all__ = [
     "DISTRIBUTIONS",
     "MAX_POINTS",
+    "SAMPLING_SCHEME",
     "SPECIAL_NAMES",
     "ControllerEntry",
     "SweepSpec",
@@ -94,6 +95,10 @@ MAX_SAMPLES = 2**32 - 1
 
 #: Points per chunk by default: a chunk is one task, one Parquet file and the unit of resume.
 DEFAULT_CHUNK = 1000
+#: Version of the way points are drawn (``sampling.py``: the counter-based generator, the
+#: stream numbers, the inverse CDFs). It is part of the canonical spec, so its digest, so a
+#: sweep drawn by another scheme is never resumed into (its rows would mix two draws).
+SAMPLING_SCHEME = 1
 
 _SWEEP_KEYS = {"name", "plant", "param_set", "start", "ts", "duration", "substep", "samples",
                "seed", "chunk", "delay", "noise_std"}
@@ -303,6 +308,7 @@ class SweepSpec:
             "seed": self.seed, "chunk": self.chunk,
             "controllers": [c.record() for c in self.controllers],
             "vary": [v.record() for v in self.vary],
+            "sampling": SAMPLING_SCHEME,
         }
 
     @classmethod
