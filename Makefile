@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed-stamp
 FLVENV := .venv-fuzzylite
 PIP_QUIET := $(if $(CI),-q,)
 
-.PHONY: all reproduce test test-fast lint bench clean clean-numba oracles crosscheck
+.PHONY: all reproduce test test-fast lint bench clean clean-numba oracles crosscheck precompile
 
 all: test
 
@@ -44,22 +44,28 @@ crosscheck: $(STAMP)
 	  || { $(SUDO) apt-get update -q && $(APT_INSTALL) octave octave-fuzzy-logic-toolkit; }
 	$(BIN)/python benchmarks/crosscheck_octave.py
 
-reproduce: $(STAMP)
+reproduce: precompile
 	$(BIN)/fuzzyservo reproduce --out results/paper
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/mypy src
 
-test: lint oracles
+# The compiled kernels take about four minutes to compile on a fresh clone; compiled once,
+# first, into numba's cache, every test worker and every process a test starts loads them in
+# about a second instead of compiling them again (docs/architecture.md, "Compilation").
+precompile: $(STAMP)
+	$(BIN)/python -m fuzzyservo.sim.precompile
+
+test: lint oracles precompile
 	$(BIN)/python -m pytest -n 2 -q
 
 # the same without the tests marked slow (brute-force accuracy, the README's study and tuning
 # runs): a quick check while editing; CI and `make test` run everything
-test-fast: lint oracles
+test-fast: lint oracles precompile
 	$(BIN)/python -m pytest -n 2 -q -m "not slow"
 
-bench: $(STAMP) $(FLVENV)/.installed-stamp
+bench: precompile $(FLVENV)/.installed-stamp
 	$(BIN)/python benchmarks/run_all.py --fuzzylite-python $(FLVENV)/bin/python
 
 # numba's on-disk cache is invalidated by a change of the function's own file only, not of a
