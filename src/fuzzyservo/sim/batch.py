@@ -36,6 +36,7 @@ from .closed_loop import (
     profile,
     ring_size,
     run_linear,
+    run_linear_pair,
     run_nonlinear,
     time_grid,
 )
@@ -68,6 +69,30 @@ def _fill_ref(rbuf: FloatArray, roff: FloatArray, y0: float) -> None:
         rbuf[k] = roff[k] + y0
 
 
+@numba.njit(cache=True, nogil=True)
+def _finish_run(i: int, bad: int, t: FloatArray, yv: FloatArray, uv: FloatArray,
+                av: FloatArray, rbuf: FloatArray, mopts: FloatArray, metrics: FloatArray,
+                tail_fraction: float, tail: FloatArray, tbuf: FloatArray,
+                twork: FloatArray) -> None:
+    """Run i's metrics and tail (NaN, and NaN traces from sample ``bad`` on, if diverged)."""
+    n_t = t.shape[0]
+    if bad >= 0:
+        for k in range(bad, n_t):
+            yv[k] = np.nan
+            uv[k] = np.nan
+            av[k] = np.nan
+        for m in range(metrics.shape[1]):
+            metrics[i, m] = np.nan
+        for m in range(N_TAIL):
+            tail[i, m] = np.nan
+    else:
+        step_metrics_core(t, yv, uv, rbuf, yv[0], rbuf[n_t - 1], mopts[0], mopts[1],
+                          mopts[2], mopts[3], metrics[i])
+        tail_oscillation_work(t, yv, tail_fraction, tbuf, twork)
+        for m in range(N_TAIL):
+            tail[i, m] = tbuf[m]
+
+
 @numba.njit(cache=True, parallel=True)
 def _batch_linear(
     kind: int, cps: FloatArray, cs0: FloatArray,
@@ -88,53 +113,57 @@ def _batch_linear(
     for c in numba.prange(n_chunks):
         lo = c * n // n_chunks
         hi = (c + 1) * n // n_chunks
-        ybuf = np.empty(n_t)
-        ubuf_tr = np.empty(n_t)
-        abuf = np.empty(n_t)
-        rbuf = np.empty(n_t)
-        x = np.empty(nx_max)
-        xn = np.empty(nx_max)
-        ring = np.empty(ring_size(d_max, n_t))
-        cs = np.empty(cs0.shape[1])
+        # buffers of the two runs a chunk advances together (run_linear_pair)
+        ybuf = np.empty((2, n_t))
+        ubuf_tr = np.empty((2, n_t))
+        abuf = np.empty((2, n_t))
+        rbuf = np.empty((2, n_t))
+        x = np.empty((2, nx_max))
+        xn = np.empty((2, nx_max))
+        ring = np.empty((2, ring_size(d_max, n_t)))
+        cs = np.empty((2, cs0.shape[1]))
         no_x = np.empty((0, nx_max))
         no_xop = np.zeros(nx_max)
         no_noise = np.empty(0)
         tbuf = np.empty(N_TAIL + 1)
         twork = np.empty((TAIL_WORK, 3))
-        for i in range(lo, hi):
-            nx = int(lps[i, 0])
-            for j in range(nx):
-                x[j] = 0.0
-            for j in range(cs.shape[0]):
-                cs[j] = cs0[i, j]
-            _fill_ref(rbuf, roff[min(i, roff.shape[0] - 1)], y0s[i])
-            if keep:
-                yv = y_tr[i]
-                uv = u_tr[i]
-                av = a_tr[i]
+        i = lo
+        while i < hi:
+            m = min(2, hi - i)  # runs in this step: a pair, or the chunk's last one
+            for b in range(m):
+                nx = int(lps[i + b, 0])
+                for j in range(nx):
+                    x[b, j] = 0.0
+                for j in range(cs.shape[1]):
+                    cs[b, j] = cs0[i + b, j]
+                _fill_ref(rbuf[b], roff[min(i + b, roff.shape[0] - 1)], y0s[i + b])
+            ya = y_tr[i] if keep else ybuf[0]
+            ua = u_tr[i] if keep else ubuf_tr[0]
+            aa = a_tr[i] if keep else abuf[0]
+            nza = noise[min(i, noise.shape[0] - 1)] if noise.shape[0] > 0 else no_noise
+            na = int(lps[i, 0])
+            if m == 2:
+                yb = y_tr[i + 1] if keep else ybuf[1]
+                ub = u_tr[i + 1] if keep else ubuf_tr[1]
+                ab = a_tr[i + 1] if keep else abuf[1]
+                nzb = (noise[min(i + 1, noise.shape[0] - 1)] if noise.shape[0] > 0
+                       else no_noise)
+                nb = int(lps[i + 1, 0])
+                bad[i], bad[i + 1] = run_linear_pair(
+                    kind, cps[i], cs[0], cps[i + 1], cs[1], du_rules, du_lims, a_rules,
+                    a_lims, lps[i], lps[i + 1], u0s[i], u0s[i + 1], rbuf[0], rbuf[1], nza,
+                    nzb, y0s[i], y0s[i + 1], x[0, :na], xn[0, :na], x[1, :nb], xn[1, :nb],
+                    ring[0], ring[1], ya, ua, aa, yb, ub, ab)
+                _finish_run(i + 1, bad[i + 1], t, yb, ub, ab, rbuf[1], mopts, metrics,
+                            tail_fraction, tail, tbuf, twork)
             else:
-                yv = ybuf
-                uv = ubuf_tr
-                av = abuf
-            nz = noise[min(i, noise.shape[0] - 1)] if noise.shape[0] > 0 else no_noise
-            bad[i] = run_linear(kind, cps[i], cs, du_rules, du_lims, a_rules, a_lims,
-                                lps[i], u0s[i], no_xop[:nx], rbuf, nz, y0s[i], x[:nx],
-                                xn[:nx], ring, yv, uv, av, no_x[:, :nx])
-            if bad[i] >= 0:
-                for k in range(bad[i], n_t):
-                    yv[k] = np.nan
-                    uv[k] = np.nan
-                    av[k] = np.nan
-                for m in range(metrics.shape[1]):
-                    metrics[i, m] = np.nan
-                for m in range(N_TAIL):
-                    tail[i, m] = np.nan
-            else:
-                step_metrics_core(t, yv, uv, rbuf, yv[0], rbuf[n_t - 1], mopts[0], mopts[1],
-                                  mopts[2], mopts[3], metrics[i])
-                tail_oscillation_work(t, yv, tail_fraction, tbuf, twork)
-                for m in range(N_TAIL):
-                    tail[i, m] = tbuf[m]
+                bad[i] = run_linear(kind, cps[i], cs[0], du_rules, du_lims, a_rules, a_lims,
+                                    lps[i], u0s[i], no_xop[:na], rbuf[0], nza, y0s[i],
+                                    x[0, :na], xn[0, :na], ring[0], ya, ua, aa,
+                                    no_x[:, :na])
+            _finish_run(i, bad[i], t, ya, ua, aa, rbuf[0], mopts, metrics, tail_fraction,
+                        tail, tbuf, twork)
+            i += m
 
 
 @numba.njit(cache=True, parallel=True)
@@ -192,21 +221,8 @@ def _batch_nonlinear(
             bad[i] = run_nonlinear(kind, cps[i], cs, du_rules, du_lims, a_rules, a_lims,
                                    p, ts, ds[i], fs[i], n_subs[i], u0s[i], rbuf, nz, force,
                                    x, work, ring, yv, uv, av, no_x)
-            if bad[i] >= 0:
-                for k in range(bad[i], n_t):
-                    yv[k] = np.nan
-                    uv[k] = np.nan
-                    av[k] = np.nan
-                for m in range(metrics.shape[1]):
-                    metrics[i, m] = np.nan
-                for m in range(N_TAIL):
-                    tail[i, m] = np.nan
-            else:
-                step_metrics_core(t, yv, uv, rbuf, yv[0], rbuf[n_t - 1], mopts[0], mopts[1],
-                                  mopts[2], mopts[3], metrics[i])
-                tail_oscillation_work(t, yv, tail_fraction, tbuf, twork)
-                for m in range(N_TAIL):
-                    tail[i, m] = tbuf[m]
+            _finish_run(i, bad[i], t, yv, uv, av, rbuf, mopts, metrics, tail_fraction, tail,
+                        tbuf, twork)
 
 
 def _reference_rows(reference: Reference | ArrayLike, t: FloatArray) -> FloatArray:
