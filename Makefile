@@ -51,11 +51,11 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/mypy src
 
-# The compiled kernels take about four minutes to compile on a fresh clone; compiled once,
+# The compiled kernels take minutes to compile on a fresh clone (fuzzyservo precompile); once,
 # first, into numba's cache, every test worker and every process a test starts loads them in
 # about a second instead of compiling them again (docs/architecture.md, "Compilation").
 precompile: $(STAMP)
-	$(BIN)/python -m fuzzyservo.sim.precompile
+	$(BIN)/fuzzyservo precompile
 
 test: lint oracles precompile
 	$(BIN)/python -m pytest -n 2 -q

@@ -47,6 +47,7 @@ COMMANDS: tuple[str, ...] = (
     "export",
     "sweep",
     "reproduce",
+    "precompile",
 )
 
 #: Exit status after the reader of standard output went away (128 + SIGPIPE).
