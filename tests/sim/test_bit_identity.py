@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import numba
 import numpy as np
 import pytest
 
@@ -205,12 +206,29 @@ def test_batch_rows_are_single_runs(name: str, kind: str) -> None:
     seeds, stds = [11, 12, 13, 14], [2e-5, 0.0, 1e-5, 0.0]
     noise = np.vstack([np.random.default_rng(s).normal(0.0, sd, n)
                        for s, sd in zip(seeds, stds, strict=True)])
-    # the four cases in six rotations (24 runs): the kernel's chunks then advance runs in
-    # pairs and alone, and the diverging run meets every other case as either run of a pair
+    # the four cases in six rotations (24 runs). The kernel makes min(runs, 4 x threads)
+    # chunks and advances a chunk's runs two at a time: on one thread 4 chunks of 6 runs (all
+    # in pairs; the diverging case is the first run of a pair and the second), on two 8 of 3
+    # (a pair and one alone), whatever the machine's core count
     order = [(j + r) % 4 for r in range(6) for j in range(4)]
-    res = simulate_batch(ctl, rows[order], plant=[plants[j] for j in order], reference=ref,
-                         duration=dur, delay=delays[order], noise=noise[order],
-                         keep_traces=True)  # type: ignore[arg-type]
+    results = []
+    threads = numba.get_num_threads()
+    try:
+        for n_threads in (1, 2):
+            numba.set_num_threads(min(n_threads, numba.config.NUMBA_NUM_THREADS))
+            results.append(simulate_batch(
+                ctl, rows[order], plant=[plants[j] for j in order], reference=ref,
+                duration=dur, delay=delays[order], noise=noise[order],
+                keep_traces=True))  # type: ignore[arg-type]
+    finally:
+        numba.set_num_threads(threads)
+    res = results[0]
+    for other in results[1:]:  # the same bits however the runs were grouped
+        assert other.y is not None and other.u is not None
+        assert np.array_equal(other.y, res.y, equal_nan=True)  # type: ignore[arg-type]
+        assert np.array_equal(other.u, res.u, equal_nan=True)  # type: ignore[arg-type]
+        assert np.array_equal(other.metrics, res.metrics, equal_nan=True)
+        assert np.array_equal(other.tail, res.tail, equal_nan=True)
     assert res.y is not None and res.u is not None
     assert res.diverged.tolist() == [j == 3 for j in order]
     singles = []
