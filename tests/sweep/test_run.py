@@ -26,7 +26,7 @@ import pytest
 from fuzzyservo.cli import main
 from fuzzyservo.sweep import load_spec, read_manifest, read_table, run_sweep, table_digest
 from fuzzyservo.sweep.dataset import chunk_path
-from fuzzyservo.sweep.spec import SAMPLING_SCHEME
+from fuzzyservo.sweep.spec import SAMPLING_SCHEME, UNRECORDED_SCHEME, canonical_digest
 
 SPEC = """
 [sweep]
@@ -287,20 +287,36 @@ def test_refusals_leave_the_folder_as_it_was(spec_file: Path, tmp_path: Path,
     assert "holds a different sweep (its spec differs in seed)" in err
     assert len(err.strip().splitlines()) == 1
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
-    # a sweep drawn by another sampling scheme (an older fuzzyservo) is never resumed into
-    older = tmp_path / "older"
-    shutil.copytree(out, older)
-    doc = json.loads((older / "manifest.json").read_text(encoding="utf-8"))
-    doc["spec"]["sampling"] = SAMPLING_SCHEME - 1
-    (older / "manifest.json").write_text(json.dumps(doc), encoding="utf-8")
-    kept = {p: p.read_bytes() for p in older.rglob("*") if p.is_file()}
-    assert main(["sweep", str(spec_file), "--out", str(older), "--resume",
+    # a sweep drawn by another sampling scheme (another fuzzyservo) is never resumed into
+    other_scheme = tmp_path / "other-scheme"
+    shutil.copytree(out, other_scheme)
+    doc = json.loads((other_scheme / "manifest.json").read_text(encoding="utf-8"))
+    doc["spec"]["sampling"] = SAMPLING_SCHEME + 1
+    (other_scheme / "manifest.json").write_text(json.dumps(doc), encoding="utf-8")
+    kept = {p: p.read_bytes() for p in other_scheme.rglob("*") if p.is_file()}
+    assert main(["sweep", str(spec_file), "--out", str(other_scheme), "--resume",
                  "--no-progress"]) == 2
     err = capsys.readouterr().err
-    assert (f"holds a sweep drawn by sampling scheme {SAMPLING_SCHEME - 1}; this fuzzyservo "
+    assert (f"holds a sweep drawn by sampling scheme {SAMPLING_SCHEME + 1}; this fuzzyservo "
             f"draws scheme {SAMPLING_SCHEME}") in err
     assert len(err.strip().splitlines()) == 1
-    assert {p: p.read_bytes() for p in older.rglob("*") if p.is_file()} == kept
+    assert {p: p.read_bytes() for p in other_scheme.rglob("*") if p.is_file()} == kept
+    # one written before the scheme was recorded (no "sampling", its digest without it) drew
+    # scheme 1's points: it is resumed, and gives the same rows
+    unrecorded = tmp_path / "unrecorded"
+    shutil.copytree(out, unrecorded)
+    doc = json.loads((unrecorded / "manifest.json").read_text(encoding="utf-8"))
+    del doc["spec"]["sampling"]
+    doc["digest"] = canonical_digest(doc["spec"])
+    first = sorted(doc["chunks"], key=int)[0]
+    del doc["chunks"][first]  # one chunk to run again
+    (unrecorded / "manifest.json").write_text(json.dumps(doc), encoding="utf-8")
+    chunk_path(unrecorded, int(first)).unlink()
+    assert UNRECORDED_SCHEME == SAMPLING_SCHEME  # else this folder must be refused
+    assert main(["sweep", str(spec_file), "--out", str(unrecorded), "--resume",
+                 "--no-progress", "--processes", "1"]) == 0
+    capsys.readouterr()
+    assert table_digest(read_table(unrecorded)) == table_digest(read_table(out))
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "x.txt").write_text("x", encoding="utf-8")
     assert main(["sweep", str(spec_file), "--out", str(tmp_path / "junk")]) == 2

@@ -57,7 +57,7 @@ from ..study.claims import (
 )
 from .dataset import Manifest, adopt, chunk_path, finished_files, read_manifest, write_chunk
 from .sampling import Points, points
-from .spec import SAMPLING_SCHEME, SweepSpec
+from .spec import SAMPLING_SCHEME, UNRECORDED_SCHEME, SweepSpec, canonical_digest
 
 __all__ = [
     "OUTCOMES",
@@ -186,7 +186,7 @@ class PointRuns:
                         checked[ck] = exc
                 failed = checked[ck]
                 if failed is not None:
-                    raise failed
+                    raise failed.with_traceback(None)  # not a growing traceback
                 self.plants[j] = plant
             except FuzzyServoError as exc:
                 self.error[j] = " ".join(str(exc).split())
@@ -281,14 +281,17 @@ def _check_folder(spec: SweepSpec, out: Path, resume: bool) -> Manifest | None:
             raise OutputError(f"{str(out)!r} already holds a sweep ({len(man.chunks)} of "
                               f"{man.n_chunks} chunks): add --resume to continue it, or give "
                               f"a new folder")
-        if man.spec.get("sampling") != SAMPLING_SCHEME:
-            raise InputError(f"{str(out)!r} holds a sweep drawn by sampling scheme "
-                             f"{man.spec.get('sampling', 0)}; this fuzzyservo draws scheme "
-                             f"{SAMPLING_SCHEME}, so --resume would mix two draws: give a new "
-                             f"folder")
-        if man.digest != spec.digest:
-            diff = sorted(k for k in set(man.spec) | set(spec.canonical())
-                          if man.spec.get(k) != spec.canonical().get(k))
+        scheme = man.spec.get("sampling", UNRECORDED_SCHEME)
+        if scheme != SAMPLING_SCHEME:
+            raise InputError(f"{str(out)!r} holds a sweep drawn by sampling scheme {scheme}; "
+                             f"this fuzzyservo draws scheme {SAMPLING_SCHEME}, so --resume "
+                             f"would mix two draws: give a new folder")
+        canon = spec.canonical()
+        if "sampling" not in man.spec:  # written before the scheme was recorded
+            del canon["sampling"]
+        if man.digest != canonical_digest(canon):
+            diff = sorted(k for k in set(man.spec) | set(canon)
+                          if man.spec.get(k) != canon.get(k))
             raise InputError(f"{str(out)!r} holds a different sweep (its spec differs in "
                              f"{', '.join(diff) or 'its files'}); --resume continues only the "
                              f"same spec: give a new folder")

@@ -64,9 +64,11 @@ __all__ = [
     "MAX_POINTS",
     "SAMPLING_SCHEME",
     "SPECIAL_NAMES",
+    "UNRECORDED_SCHEME",
     "ControllerEntry",
     "SweepSpec",
     "Variation",
+    "canonical_digest",
     "load_spec",
     "parse_spec",
 ]
@@ -99,6 +101,9 @@ DEFAULT_CHUNK = 1000
 #: stream numbers, the inverse CDFs). It is part of the canonical spec, so its digest, so a
 #: sweep drawn by another scheme is never resumed into (its rows would mix two draws).
 SAMPLING_SCHEME = 1
+#: The scheme of a manifest that names none: written before the scheme was recorded, whose
+#: draws are scheme 1's.
+UNRECORDED_SCHEME = 1
 
 _SWEEP_KEYS = {"name", "plant", "param_set", "start", "ts", "duration", "substep", "samples",
                "seed", "chunk", "delay", "noise_std"}
@@ -343,8 +348,13 @@ class SweepSpec:
     @property
     def digest(self) -> str:
         """SHA-256 of :meth:`canonical` (names the sweep in its manifest)."""
-        text = json.dumps(self.canonical(), sort_keys=True, allow_nan=False)
-        return hashlib.sha256(text.encode()).hexdigest()
+        return canonical_digest(self.canonical())
+
+
+def canonical_digest(doc: Mapping[str, Any]) -> str:
+    """SHA-256 of a canonical spec (:meth:`SweepSpec.canonical`) as sorted compact JSON."""
+    text = json.dumps(doc, sort_keys=True, allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def load_spec(path: str | Path) -> SweepSpec:
