@@ -103,8 +103,9 @@ def run(args: argparse.Namespace) -> int:
     }
     if sweeps:
         meta["claim C8 at scale"] = ", ".join(f"c8-sweep-{p}.html" for p in plants) + (
-            " (the first points of the shipped C8 sweeps: the paper's and the tuned "
-            "controllers on plants drawn from the whole spread; docs/sweep.md)")
+            " (the first points of the shipped C8 sweeps: the paper's controllers, the tuned "
+            "ones and the robust design on plants drawn from the whole spread; "
+            "docs/sweep.md)")
     if from_files:
         meta["fuzzy systems"] = "; ".join(
             f"{role}: {s.source} (sha256 {s.digest[:12]})" for role, s in from_files)

@@ -287,9 +287,10 @@ def ring_size(d: int, n: int) -> int:
     return min(d, n) + 2
 
 
-# The sample step below (controller, record, ring buffer) is written out in both run_linear and
-# run_nonlinear: moving it into one shared inline="always" function cost 25 % of the batched
-# PID rate on the linear plant (benchmarks/closed_loop.py, 30 -> 23 M steps/s).
+# The sample step below (controller, record, ring buffer) is written out in run_linear,
+# run_linear_pair (twice, one per run) and run_nonlinear: moving it into one shared
+# inline="always" function cost 25 % of the batched PID rate on the linear plant
+# (benchmarks/closed_loop.py, 30 -> 23 M steps/s).
 @numba.njit(cache=True, nogil=True)
 def _delayed(ubuf: FloatArray, w: int, k: int, d: int, u_init: float) -> tuple[float, float]:
     """Commands u_{k-d} and u_{k-d-1} from the ring buffer whose slot ``w`` holds u_k
