@@ -233,7 +233,13 @@ def test_several_files_are_written_as_one(tmp_path: Path, monkeypatch: pytest.Mo
             signal.raise_signal(signal.SIGINT)
 
     monkeypatch.setattr(os, "replace", replace)
-    with pytest.raises(KeyboardInterrupt):
-        write_texts_atomic({a: "new c", b: "new h"})
+    # Python's Ctrl-C handler, whatever this process inherited (started in the background, a
+    # process ignores SIGINT, and so would the signal raised here)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            write_texts_atomic({a: "new c", b: "new h"})
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert (a.read_text(), b.read_text()) == ("new c", "new h") and len(done) == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.c", "x.h"]  # no temporaries

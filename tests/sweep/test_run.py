@@ -27,6 +27,7 @@ from fuzzyservo.cli import main
 from fuzzyservo.sweep import load_spec, read_manifest, read_table, run_sweep, table_digest
 from fuzzyservo.sweep.dataset import chunk_path
 from fuzzyservo.sweep.spec import SAMPLING_SCHEME, UNRECORDED_SCHEME, canonical_digest
+from tests.helpers import default_sigint
 
 SPEC = """
 [sweep]
@@ -108,8 +109,11 @@ def reference_digest(spec_file: Path, tmp_path_factory: pytest.TempPathFactory) 
 
 
 def _child(script: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    # default_sigint: the child handles Ctrl-C as in a terminal, whatever this process
+    # inherited (a background job ignores SIGINT, and its children with it)
     return subprocess.run([sys.executable, "-c", textwrap.dedent(script)], cwd=cwd,
-                          capture_output=True, text=True, timeout=300)
+                          capture_output=True, text=True, timeout=300,
+                          preexec_fn=default_sigint)
 
 
 def _resume(spec_file: Path, out: Path) -> str:
