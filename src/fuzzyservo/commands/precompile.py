@@ -40,32 +40,36 @@ GROUPS: tuple[tuple[tuple[str, ...], bool], ...] = ((("linear", "small-signal"),
 
 
 def compile_group(plants: tuple[str, ...], per_step: bool = False) -> float:
-    """Run the closed loops of ``plants`` once (short runs) and, if ``per_step``, the
-    per-step API; return the seconds it took."""
+    """Run the closed loops of ``plants`` once (short runs) with every registered controller
+    and, if ``per_step``, their per-step API; return the seconds it took.
+
+    The controllers are the registry's templates (their required gains 0): the kernels are
+    compiled for argument types, not values, and a controller kind is a runtime argument, so
+    the first kind compiles the loops and the others run them from memory."""
     import numpy as np
 
     from ..paper.published import paper_params
-    from ..registry import build_controller, build_plant
+    from ..registry import build_plant, controller_kind, controller_names
     from ..sim import Step, simulate, simulate_batch
 
     t0 = time.perf_counter()
     params = paper_params()
     ts = 1e-3
-    stfpi = build_controller("stfpi", {"ke": 40.0, "kde": 20.0, "kdu": 0.005}, dt=ts)
-    rows = np.tile([40.0, 20.0, 0.005], (3, 1))  # three runs: a pair and one alone
+    ctls = [controller_kind(name).template(dt=ts) for name in controller_names()]
     for name in plants:
         plant = build_plant(name, params)
-        simulate(stfpi, plant, Step(0.01), duration=0.02, delay=0.0015, noise_std=1e-6,
-                 rng=np.random.default_rng(0))
-        for keep in (False, True):
-            simulate_batch(stfpi, rows, plant=plant, reference=Step(0.01), duration=0.02,
-                           delay=[0.0, 0.0015, 0.003], noise=np.zeros((3, 21)),
-                           keep_traces=keep)
-        simulate_batch(stfpi, plant=[plant] * 3, reference=np.zeros((3, 21)), duration=0.02)
+        for ctl in ctls:
+            simulate(ctl, plant, Step(0.01), duration=0.02, delay=0.0015, noise_std=1e-6,
+                     rng=np.random.default_rng(0))
+            for keep in (False, True):  # three runs: a pair and one alone
+                simulate_batch(ctl, plant=plant, reference=Step(0.01), duration=0.02,
+                               delay=[0.0, 0.0015, 0.003], noise=np.zeros((3, 21)),
+                               keep_traces=keep)
+            simulate_batch(ctl, plant=[plant] * 3, reference=np.zeros((3, 21)),
+                           duration=0.02)
     if per_step:
-        pid = build_controller("pid", {"kp": 1.2, "ki": 1.0, "kd": 0.75}, dt=ts)
-        for c in (pid, stfpi):
-            c.step(c.initial_state(), 0.01, 0.0)
+        for ctl in ctls:
+            ctl.step(ctl.initial_state(), 0.01, 0.0)
     return time.perf_counter() - t0
 
 
