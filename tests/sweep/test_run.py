@@ -274,6 +274,34 @@ def test_dask_local_cluster_gives_the_same_rows_and_resumes(kill_spec: tuple[Pat
     assert table_digest(read_table(killed)) == digest
 
 
+def test_an_interrupted_start_leaves_no_half_made_folder(spec_file: Path, tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch,
+                                                         reference_digest: str) -> None:
+    from fuzzyservo.sweep.dataset import Manifest
+
+    spec = load_spec(spec_file)
+    out = tmp_path / "s"
+    real = Manifest.write
+
+    def interrupted(self: Manifest, folder: Path) -> None:
+        raise KeyboardInterrupt  # Ctrl-C while the new folder is being made
+
+    monkeypatch.setattr(Manifest, "write", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(spec, out, progress=False, processes=1)
+    assert not out.exists() and not list(tmp_path.glob(".s.new-*"))
+    monkeypatch.setattr(Manifest, "write", real)
+    # a sibling left by a killed sweep (its process is gone) is removed; an empty --out is
+    # taken; the rows are those of an uninterrupted run
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    (tmp_path / f".s.new-{dead}" / "chunks").mkdir(parents=True)
+    out.mkdir()
+    run_sweep(spec, out, progress=False, processes=1)
+    assert not list(tmp_path.glob(".s.new-*"))
+    assert table_digest(read_table(out)) == reference_digest
+
+
 def test_refusals_leave_the_folder_as_it_was(spec_file: Path, tmp_path: Path,
                                              capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "s"

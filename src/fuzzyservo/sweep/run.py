@@ -325,18 +325,56 @@ def _prepare(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None) ->
         if adopted or changed:
             man.write(out)
         return man
-    try:
-        (out / "chunks").mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot create {str(out)!r}: {exc.strerror or exc}") from None
     man = Manifest.new(spec.digest, spec.canonical(), spec.n_points, spec.n_chunks, spec.n_runs,
                        columns(spec))
-    if spec_text is not None:
-        from .._io import write_text_atomic
-
-        write_text_atomic(out / "spec.toml", spec_text)
-    man.write(out)
+    _create_folder(out, man, spec_text)
     return man
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process
+        return True
+    return True
+
+
+def _create_folder(out: Path, man: Manifest, spec_text: str | None) -> None:
+    """Create a new sweep's folder as one step: ``chunks/``, ``spec.toml`` and the manifest
+    are written into a hidden sibling, ``.NAME.new-PID``, renamed onto ``out`` (absent, or
+    an empty folder) at the end. An interruption before the rename leaves ``out`` as it was
+    (a rerun of the same command starts afresh, a reproduce finds no half-made sweep);
+    siblings left by killed sweeps are removed here."""
+    import shutil
+
+    from .._io import write_text_atomic
+
+    parent = out.absolute().parent
+    prefix = f".{out.name}.new-"
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        for old in parent.glob(prefix + "*"):
+            pid = old.name[len(prefix):]
+            if pid.isdigit() and not _pid_alive(int(pid)):
+                shutil.rmtree(old, ignore_errors=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create {str(out)!r}: {exc.strerror or exc}") from None
+    tmp = parent / f"{prefix}{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    try:
+        (tmp / "chunks").mkdir(parents=True)
+        if spec_text is not None:
+            write_text_atomic(tmp / "spec.toml", spec_text)
+        man.write(tmp)
+        os.replace(tmp, out)  # onto an absent or empty folder: atomic
+    except OSError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise OutputError(f"cannot create {str(out)!r}: {exc.strerror or exc}") from None
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
 
 
 @contextlib.contextmanager
