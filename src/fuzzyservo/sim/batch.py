@@ -122,7 +122,8 @@ def _batch_linear(
         xn = np.empty((2, nx_max))
         ring = np.empty((2, ring_size(d_max, n_t)))
         cs = np.empty((2, cs0.shape[1]))
-        no_x = np.empty((0, nx_max))
+        no_x = np.empty((0, nx_max))  # passed whole: a slice is another array type (layout
+        # 'A'), for which run_linear would be compiled a second time (about 70 s)
         no_xop = np.zeros(nx_max)
         no_noise = np.empty(0)
         tbuf = np.empty(N_TAIL + 1)
@@ -159,8 +160,7 @@ def _batch_linear(
             else:
                 bad[i] = run_linear(kind, cps[i], cs[0], du_rules, du_lims, a_rules, a_lims,
                                     lps[i], u0s[i], no_xop[:na], rbuf[0], nza, y0s[i],
-                                    x[0, :na], xn[0, :na], ring[0], ya, ua, aa,
-                                    no_x[:, :na])
+                                    x[0, :na], xn[0, :na], ring[0], ya, ua, aa, no_x)
             _finish_run(i, bad[i], t, ya, ua, aa, rbuf[0], mopts, metrics, tail_fraction,
                         tail, tbuf, twork)
             i += m
