@@ -45,3 +45,17 @@ def test_bad_process_count_is_one_line(n: str, capsys: pytest.CaptureFixture[str
     err = capsys.readouterr().err
     assert err.strip() == f"fuzzyservo: error: --processes must be 1 or 2, got {n}"
     assert cmd.GROUPS  # the groups it would have run
+
+
+
+def test_each_loop_is_compiled_for_one_signature() -> None:
+    # simulate and the batch kernel call the single-run loops with the same argument types;
+    # an argument of another type (a slice with layout 'A' was one) compiles a loop a second
+    # time, a minute or more of every fresh install's precompile. numba's cache index lists
+    # every signature compiled from the current source (a changed source starts a new index)
+    from fuzzyservo.sim import closed_loop as cl
+
+    cmd.precompile(1)  # seconds when make test has run it
+    counts = {f.__name__: len(f._cache._cache_file._load_index())
+              for f in (cl.run_linear, cl.run_linear_pair, cl.run_nonlinear)}
+    assert counts == {"run_linear": 1, "run_linear_pair": 1, "run_nonlinear": 1}

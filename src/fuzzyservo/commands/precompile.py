@@ -1,7 +1,7 @@
 """``fuzzyservo precompile``: compile the closed-loop kernels once, into numba's on-disk cache.
 
 The kernels are compiled on their first call and cached next to their sources
-(``cache=True``). A cold compile takes about four minutes of CPU (the controller laws and the
+(``cache=True``). A cold compile takes about seven minutes of CPU (the controller laws and the
 fuzzy evaluators are inlined into every loop so the loops run fast), and a fresh install pays
 it in every process that starts before the cache is written: a sweep's worker processes, a
 test suite's workers, the processes a test starts. ``fuzzyservo precompile`` pays it once,
