@@ -36,6 +36,7 @@ __all__ = [
     "Terminated",
     "atomic_write",
     "check_output_path",
+    "fsync_folder",
     "npz_inflation",
     "read_text",
     "sha256_file",
@@ -169,7 +170,7 @@ def _direct(target: Path, binary: bool) -> Iterator[IO[Any]]:
         raise OutputError(f"cannot write {str(target)!r}: {_describe(exc)}") from None
 
 
-def _fsync_folder(folder: Path) -> None:
+def fsync_folder(folder: Path) -> None:
     """Make renames in ``folder`` durable (best effort: not every file system allows it)."""
     with contextlib.suppress(OSError):
         dfd = os.open(folder, os.O_RDONLY)
@@ -208,7 +209,7 @@ def _atomic_file(target: Path, binary: bool) -> Iterator[IO[Any]]:
         os.chmod(tmp, _new_file_mode(target))
         os.replace(tmp, target)
         done = True
-        _fsync_folder(folder)
+        fsync_folder(folder)
     except OSError as exc:
         raise OutputError(f"cannot write {str(shown)!r}: {_describe(exc)}; "
                           f"the previous file, if any, is unchanged") from None
@@ -272,7 +273,7 @@ def write_texts_atomic(files: dict[Path, str]) -> list[Path]:
                 os.replace(tmp, target)
             temps = []
         for folder in dict.fromkeys(Path(os.path.realpath(p)).parent for p in files):
-            _fsync_folder(folder)
+            fsync_folder(folder)
     except OSError as exc:
         shown = ", ".join(repr(str(p)) for p in files)
         raise OutputError(f"cannot write {shown}: {_describe(exc)}; the previous files, if "

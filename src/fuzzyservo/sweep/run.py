@@ -349,7 +349,7 @@ def _create_folder(out: Path, man: Manifest, spec_text: str | None) -> None:
     siblings left by killed sweeps are removed here."""
     import shutil
 
-    from .._io import write_text_atomic
+    from .._io import fsync_folder, write_text_atomic
 
     parent = out.absolute().parent
     prefix = f".{out.name}.new-"
@@ -369,6 +369,7 @@ def _create_folder(out: Path, man: Manifest, spec_text: str | None) -> None:
             write_text_atomic(tmp / "spec.toml", spec_text)
         man.write(tmp)
         os.replace(tmp, out)  # onto an absent or empty folder: atomic
+        fsync_folder(parent)  # and durable, as the chunks' renames are
     except OSError as exc:
         shutil.rmtree(tmp, ignore_errors=True)
         raise OutputError(f"cannot create {str(out)!r}: {exc.strerror or exc}") from None
