@@ -208,6 +208,21 @@ def _kill_reproduce(sig: int, n: int, seed: int, tmp_path: Path) -> list[tuple[i
 
 
 @pytest.mark.slow
+def test_a_run_without_the_c8_sweeps_then_one_with_them(tmp_path: Path) -> None:
+    # --params leaves the C8 sweeps out and removes their recorded files, not the sweep's
+    # lock: the next run with them found a folder 'not a sweep folder' and stopped
+    sp = tmp_path / "sp.toml"
+    sp.write_text("[supply]\npressure = 7.5e6\n")
+    out = tmp_path / "rp"
+    assert main([*BASE, "--out", str(out)]) == 0
+    assert main([*BASE, "--out", str(out), "--params", str(sp)]) == 0
+    assert not (out / "c8-sweep-linear.html").exists()
+    assert main([*BASE, "--out", str(out)]) == 0
+    assert (out / "c8-sweep-linear.html").is_file()
+    assert _check_folder(out) == "complete"
+
+
+@pytest.mark.slow
 def test_reproduce_killed_by_sigkill_at_random_points(tmp_path: Path) -> None:
     """Row 7: ``kill -9`` at 10 random points of the writing, alternating two parameter
     sets."""

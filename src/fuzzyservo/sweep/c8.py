@@ -53,6 +53,25 @@ def _report_key(manifest: str) -> str:
     return h.hexdigest()
 
 
+def _sweep_leftovers(folder: Path) -> bool:
+    """Whether ``folder`` (no manifest) holds only what a sweep of :func:`run_c8` leaves: its
+    lock, its report stamp, chunk files and temporary files. A reproduce run without the
+    sweeps removes the files the last run recorded (manifest, stamp, chunks) but not the
+    lock, and an interruption of that removal can leave chunks without their manifest; both
+    are reproduce's own and start the sweep afresh. Anything else is someone's and is kept."""
+    from .dataset import finished_files
+
+    ours = {folder / ".lock", folder / "report.key", *finished_files(folder).values()}
+    for p in folder.rglob("*"):
+        if p.is_dir():
+            if p != folder / "chunks":
+                return False
+        elif p not in ours and not (p.name.startswith(".") and p.name.endswith(".tmp")
+                                    and p.parent in (folder, folder / "chunks")):
+            return False
+    return True
+
+
 def run_c8(out: Path, plants: Sequence[str], samples: int | None = None, *,
            progress: bool | None = None,
            tick: Callable[[str], None] | None = None) -> tuple[dict[str, Path], list[Path]]:
@@ -73,7 +92,7 @@ def run_c8(out: Path, plants: Sequence[str], samples: int | None = None, *,
                 resume = True
             else:
                 shutil.rmtree(folder)
-        elif folder.is_dir() and not any(p.is_file() for p in folder.rglob("*")):
+        elif folder.is_dir() and _sweep_leftovers(folder):
             shutil.rmtree(folder)  # emptied by a run without the sweeps: start it afresh
         elif folder.exists():
             raise OutputError(f"{str(folder)!r} exists and is not a sweep folder; move it "
