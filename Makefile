@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed-stamp
 FLVENV := .venv-fuzzylite
 PIP_QUIET := $(if $(CI),-q,)
 
-.PHONY: all reproduce test test-fast lint bench clean clean-numba oracles crosscheck precompile
+.PHONY: all reproduce test test-fast lint bench clean clean-numba oracles crosscheck precompile browser
 
 all: test
 
@@ -16,7 +16,7 @@ $(BIN)/python:
 	$(BIN)/python -m pip install $(PIP_QUIET) --upgrade pip
 
 $(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install $(PIP_QUIET) -e '.[test,bench,distributed]'
+	$(BIN)/python -m pip install $(PIP_QUIET) -e '.[test,bench,distributed,app]'
 	touch $(STAMP)
 
 $(FLVENV)/.installed-stamp:
@@ -35,6 +35,15 @@ oracles:
 	@{ command -v fuzzylite && command -v gcc && [ -f /usr/include/stdio.h ]; } >/dev/null 2>&1 \
 	  || $(APT_INSTALL) $(ORACLE_PKGS) \
 	  || { $(SUDO) apt-get update -q && $(APT_INSTALL) $(ORACLE_PKGS); }
+
+# The browser the page's tests drive (fuzzyservo app, tests/app): Debian's Chromium and its
+# ChromeDriver (browsers cannot be downloaded here; about 250 MB installed, ~15 s). Installed
+# when missing; the tests fail, never skip, without them.
+BROWSER_PKGS := chromium chromium-driver
+browser:
+	@{ [ -x /usr/bin/chromium ] && [ -x /usr/bin/chromedriver ]; } >/dev/null 2>&1 \
+	  || $(APT_INSTALL) $(BROWSER_PKGS) \
+	  || { $(SUDO) apt-get update -q && $(APT_INSTALL) $(BROWSER_PKGS); }
 
 # Optional: Octave's fuzzy-logic-toolkit reads and evaluates our exported .fis files (about
 # 270 MB installed, so not part of `make test`).
@@ -57,12 +66,12 @@ lint: $(STAMP)
 precompile: $(STAMP)
 	$(BIN)/fuzzyservo precompile
 
-test: lint oracles precompile
+test: lint oracles browser precompile
 	$(BIN)/python -m pytest -n 2 -q
 
 # the same without the tests marked slow (brute-force accuracy, the README's study and tuning
 # runs): a quick check while editing; CI and `make test` run everything
-test-fast: lint oracles precompile
+test-fast: lint oracles browser precompile
 	$(BIN)/python -m pytest -n 2 -q -m "not slow"
 
 bench: precompile $(FLVENV)/.installed-stamp

@@ -24,6 +24,9 @@ ALLOWED: dict[str, set[str]] = {
               "files", "plots"},
     "sweep": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis",
               "files", "plots", "study"},
+    # the browser page is a front end like the CLI: it builds its runs through the commands
+    "app": {"fuzzyservo", "fuzzy", "formats", "plant", "control", "sim", "paper", "registry",
+            "analysis", "files", "plots", "export", "commands", "cli"},
 }
 ALWAYS = {"errors", "_typing", "_io", "__version__"}
 

@@ -48,6 +48,7 @@ COMMANDS: tuple[str, ...] = (
     "sweep",
     "reproduce",
     "precompile",
+    "app",
 )
 
 #: Exit status after the reader of standard output went away (128 + SIGPIPE).
@@ -120,14 +121,29 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Build the top-level parser with every registered subcommand."""
-    parser = _Parser(
+class UsageError(FuzzyServoError, ValueError):
+    """A usage error of :func:`build_parser` ``(raising=True)``: the line the CLI would print
+    (``fuzzyservo simulate: error: argument --duration: ...``)."""
+
+
+class _RaisingParser(argparse.ArgumentParser):
+    """A parser whose usage errors raise :class:`UsageError` (for front ends that build a
+    command line and show its errors as the CLI would, e.g. the browser page)."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise UsageError(f"{self.prog}: error: {' '.join(message.split())}")
+
+
+def build_parser(*, raising: bool = False) -> argparse.ArgumentParser:
+    """Build the top-level parser with every registered subcommand (``raising``: usage
+    errors raise :class:`UsageError` instead of ending the process)."""
+    cls = _RaisingParser if raising else _Parser
+    parser = cls(
         prog="fuzzyservo",
         description="Electro-hydraulic servo models and fuzzy / PID control (Aly et al., 2012).",
     )
     parser.add_argument("--version", action="version", version=f"fuzzyservo {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=cls)
     for name in COMMANDS:
         importlib.import_module(f"fuzzyservo.commands.{name}").register(sub)
     return parser

@@ -48,7 +48,7 @@ from ._runargs import (
 )
 from .metrics import print_metrics
 
-__all__ = ["register", "run"]
+__all__ = ["ClosedLoop", "RunSettings", "closed_loop", "register", "run"]
 
 
 def register(subparsers: Any) -> None:
@@ -260,6 +260,45 @@ def _per_sample(controller: str) -> bool:
     return any("per sample" in g.unit for g in controller_kind(controller).gains)
 
 
+@dataclass(frozen=True, slots=True)
+class ClosedLoop:
+    """A closed-loop run as ``fuzzyservo simulate`` makes it (and the browser page, which
+    parses its settings with this command's parser, so that the command it shows reproduces
+    the run exactly)."""
+
+    result: Any  #: the run (:class:`fuzzyservo.sim.SimResult`)
+    settings: RunSettings  #: plant, start, duration, reference, delay, parameters
+    choice: ControllerChoice  #: controller kind, gains, sample time, systems from files
+    notes: tuple[str, ...]  #: the fuzzy systems' scaling and disagreements with a gains file
+    title: str  #: a figure title
+
+
+def closed_loop(args: argparse.Namespace) -> ClosedLoop:
+    """Build and run the closed loop that ``args`` (of this command's parser) ask for.
+
+    Raises
+    ------
+    ParameterError, InputError, FormatError
+        Whatever the command line gets wrong (one line, as the CLI prints it).
+    """
+    if args.command is not None:
+        raise InputError("--command is the open-loop command: add --open-loop, or drop it")
+    choice = controller_from_args(args)
+    ctl = choice.build(args)
+    run_ = _settings(args, choice.tuned, choice.ts, str(args.gains))
+    notes = _system_notes(choice)
+    reference = parse_reference(run_.reference)
+    if args.seed < 0:
+        raise ParameterError(f"--seed must be a non-negative integer, got {args.seed}")
+    plant = build_plant(run_.plant, run_.params, run_.start * run_.params.cylinder.stroke,
+                        substep=args.substep)
+    result = simulate(ctl, plant, reference, duration=run_.duration, delay=run_.delay,
+                      noise_std=args.noise_std, rng=np.random.default_rng(args.seed))
+    title = f"{choice.kind} on the {run_.plant} plant, reference {run_.reference}"
+    return ClosedLoop(result=result, settings=run_, choice=choice, notes=tuple(notes),
+                      title=title)
+
+
 def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo simulate``."""
     _check_outputs(args)
@@ -296,20 +335,9 @@ def run(args: argparse.Namespace) -> int:
                 method=args.method, progress=progress, max_rhs_evals=args.max_evaluations)
         title = f"open loop, u = {args.command:g}, {run_.plant} plant"
     else:
-        if args.command is not None:
-            raise InputError("--command is the open-loop command: add --open-loop, or drop it")
-        choice = controller_from_args(args)
-        ctl = choice.build(args)
-        run_ = _settings(args, choice.tuned, choice.ts, str(args.gains))
-        extra_notes = _system_notes(choice)
-        reference = parse_reference(run_.reference)
-        if args.seed < 0:
-            raise ParameterError(f"--seed must be a non-negative integer, got {args.seed}")
-        plant = build_plant(run_.plant, run_.params, run_.start * run_.params.cylinder.stroke,
-                            substep=args.substep)
-        result = simulate(ctl, plant, reference, duration=run_.duration, delay=run_.delay,
-                          noise_std=args.noise_std, rng=np.random.default_rng(args.seed))
-        title = f"{choice.kind} on the {run_.plant} plant, reference {run_.reference}"
+        closed = closed_loop(args)
+        result, run_, title = closed.result, closed.settings, closed.title
+        extra_notes = list(closed.notes)
     for note in (*run_.notes, *extra_notes):
         print(f"fuzzyservo: note: {note}", file=sys.stderr)
     _write(result, args.out)

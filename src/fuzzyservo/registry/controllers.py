@@ -81,6 +81,10 @@ class GainSpec:
         The tuner may also set the gain to exactly 0 (a log-scale gain: below the lower end of
         its box lies a region meaning 0, :data:`fuzzyservo.analysis.tuning.ZERO_DECADES` wide),
         so a search can switch the term off instead of stopping at the box's smallest value.
+    slider : (float, float) or None
+        Range of the gain's slider in the browser page (``fuzzyservo app``) [unit]; None: the
+        tuning box (scaled by 1/step for a ``per_step`` gain). Either is required to show a
+        slider; the page's number box takes any value the gain allows.
     """
 
     name: str
@@ -93,6 +97,7 @@ class GainSpec:
     held: float | None = None
     allow_inf: bool = False
     zero: bool = False
+    slider: tuple[float, float] | None = None
 
     def check(self, value: float, where: str) -> float:
         """``value`` as a float, validated (finite and >= 0; n: > 0 or inf)."""
@@ -312,7 +317,7 @@ _KI = GainSpec(name="ki", unit="1/(m s)", description="integral gain", search=(1
 _KD = GainSpec(name="kd", unit="s/m", description="derivative gain", search=(1e-4, 10.0),
                zero=True)
 _N = GainSpec(name="n", unit="1/s", description="derivative filter coefficient (inf: none)",
-              default=100.0, allow_inf=True)
+              default=100.0, allow_inf=True, slider=(1.0, 1e4))
 _KE = GainSpec(name="ke", unit="1/m", description="error scaling K_e", search=(1.0, 10.0),
                per_step=True)
 _KDE = GainSpec(name="kde", unit="1/m per sample",
@@ -338,7 +343,7 @@ _CONTROLLERS: dict[str, ControllerKind] = {
                # c = 0 while tuning: no derivative kick, and c does not enter the integral of
                # e = kp (1 - b)/ki that decides the overshoot on this plant (model-notes §5.1)
                GainSpec(name="c", unit="-", description="setpoint weight, derivative path",
-                        default=1.0, held=0.0)),
+                        default=1.0, held=0.0, log=False, slider=(0.0, 1.0))),
         options=_PID_OPTIONS),
     "fpi": ControllerKind(
         name="fpi", title="fuzzy PI", cls=FuzzyPIController, gains=(_KE, _KDE, _KDU),

@@ -1,0 +1,266 @@
+"""What the browser page shows, as a ``fuzzyservo simulate`` command line, and its run.
+
+The page holds one :class:`PageSettings`; :meth:`PageSettings.argv` is the command line of
+``fuzzyservo simulate`` that makes the same run, and :func:`run_page` makes the run by parsing
+that command line with the CLI's own parser and running it through the command's own code
+(:func:`fuzzyservo.commands.simulate.closed_loop`). So the command the page offers to copy
+reproduces the run bit for bit, and every bad value is reported in the one line the CLI
+prints for it (docs/app.md).
+
+Units: every field here is SI, as on the command line; the page shows some in engineering
+units (:data:`PHYSICAL`) and converts once, at its edge.
+"""
+
+from __future__ import annotations
+
+import math
+import shlex
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..errors import FuzzyServoError, InputError
+from ..registry import DEFAULT_SUBSTEP, controller_kind
+
+__all__ = [
+    "OPTION_CHOICES",
+    "PHYSICAL",
+    "PageRun",
+    "PageSettings",
+    "Physical",
+    "default_gains",
+    "error_line",
+    "run_page",
+]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Physical:
+    """A physical quantity the page lets a user change: a parameter field, or a run option."""
+
+    key: str  #: ``group.field`` of :class:`~fuzzyservo.plant.ServoParams`, or a run option
+    label: str  #: what the page calls it
+    unit: str  #: unit shown in the page
+    scale: float  #: SI value = shown value x scale
+    low: float  #: slider's lower end [shown unit], or [x the set's value] when ``relative``
+    high: float  #: slider's upper end, as ``low``
+    relative: bool = False  #: the slider's ends are factors of the parameter set's value
+
+
+#: The physical changes a user tries first, in the page's order; the sliders span the C8
+#: robustness sweep's ranges (mass and bulk modulus x0.5 to x2, supply +-10 %, delay 0 to
+#: 50 ms, docs/sweep.md) and beyond; the number boxes take any value the model allows.
+#: ``delay`` and ``noise_std`` are run options (``--delay``, ``--noise-std``).
+PHYSICAL: tuple[Physical, ...] = (
+    Physical(key="load.mass", label="load mass", unit="kg", scale=1.0, low=0.25, high=4.0,
+             relative=True),
+    Physical(key="fluid.oil_bulk_modulus", label="oil bulk modulus", unit="GPa", scale=1e9,
+             low=0.25, high=4.0, relative=True),
+    Physical(key="supply.pressure", label="supply pressure", unit="bar", scale=1e5, low=0.5,
+             high=2.0, relative=True),
+    Physical(key="delay", label="hose delay", unit="ms", scale=1e-3, low=0.0, high=100.0),
+    Physical(key="noise_std", label="sensor noise (std)", unit="µm", scale=1e-6, low=0.0,
+             high=100.0),
+)
+
+#: Controller options the page offers, by CLI flag: the choices (a float option has none).
+OPTION_CHOICES: dict[str, tuple[str, ...]] = {
+    "--anti-windup": ("clamping", "back-calculation", "none"),
+    "--initial-error": ("zero", "first"),
+    "--de-per": ("sample", "second"),
+    "--filter-time": (),
+}
+
+#: Option key of the controller classes -> CLI flag.
+_OPTION_KEYS = {"anti_windup": "--anti-windup", "initial_error": "--initial-error",
+                "de_per": "--de-per", "filter_time": "--filter-time"}
+
+
+def _num(v: float) -> str:
+    """A float as the command line gets it: Python's shortest repr, which reads back to the
+    same double (``inf`` for the PID's unfiltered derivative)."""
+    return repr(float(v))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PageSettings:
+    """Everything that decides the page's run (SI units, as on the command line).
+
+    Parameters
+    ----------
+    controller : str
+        Registered controller name.
+    gains : tuple of (str, float)
+        The controller's gains in the registry's order and units.
+    plant : str
+        Registered plant name.
+    param_set : str
+        Named parameter set.
+    overrides : tuple of (str, float)
+        ``group.field`` values that differ from the set [SI].
+    delay : float
+        Transport (hose) delay on the command [s].
+    noise_std : float
+        Standard deviation of the measurement noise [m].
+    seed : int
+        Seed of the noise.
+    reference : str
+        Reference spec, offset from the start position (``step:0.1``) [m, s].
+    duration, ts : float
+        Simulated time and controller sample time [s].
+    start : float
+        Start position, fraction of the stroke [-].
+    substep : float
+        Nonlinear plant's RK4 step bound [s].
+    options : tuple of (str, str)
+        Controller options as (CLI flag, value); only those set.
+    systems : tuple of (str, str)
+        Fuzzy systems read from files as (role, path).
+    no_rule_value : float or None
+        Value of a system from a file where no rule fires.
+    """
+
+    controller: str = "stfpi"
+    gains: tuple[tuple[str, float], ...] = ()
+    plant: str = "linear"
+    param_set: str = "paper"
+    overrides: tuple[tuple[str, float], ...] = ()
+    delay: float = 0.0
+    noise_std: float = 0.0
+    seed: int = 0
+    reference: str = "step:0.1"
+    duration: float = 5.0
+    ts: float = 1e-3
+    start: float = 0.5
+    substep: float = DEFAULT_SUBSTEP
+    options: tuple[tuple[str, str], ...] = ()
+    systems: tuple[tuple[str, str], ...] = ()
+    no_rule_value: float | None = None
+
+    def argv(self) -> list[str]:
+        """The arguments of ``fuzzyservo simulate`` that make this run (no output option)."""
+        gains = ",".join(f"{k}={_num(v)}" for k, v in self.gains)
+        out = ["--plant", self.plant, "--controller", self.controller]
+        if gains:
+            out += ["--gains", gains]
+        out += ["--reference", self.reference, "--duration", _num(self.duration),
+                "--ts", _num(self.ts), "--start", _num(self.start)]
+        if self.delay != 0.0:
+            out += ["--delay", _num(self.delay)]
+        if self.noise_std != 0.0:
+            out += ["--noise-std", _num(self.noise_std), "--seed", str(self.seed)]
+        if self.plant == "nonlinear" and self.substep != DEFAULT_SUBSTEP:
+            out += ["--substep", _num(self.substep)]
+        for flag, text in self.options:
+            out += [flag, text]
+        for role, file in self.systems:
+            out += [f"--{role}-system", file]
+        if self.no_rule_value is not None:
+            out += ["--no-rule-value", _num(self.no_rule_value)]
+        if self.param_set != "paper":
+            out += ["--set", self.param_set]
+        for key, number in self.overrides:
+            out += ["--param", f"{key}={_num(number)}"]
+        return out
+
+    def command(self) -> str:
+        """The ``fuzzyservo simulate`` command that reproduces the run and prints its step
+        metrics (what the page shows beside the plots)."""
+        return "fuzzyservo simulate " + shlex.join([*self.argv(), "--metrics"])
+
+    def gain_map(self) -> dict[str, float]:
+        """The gains as a mapping."""
+        return dict(self.gains)
+
+    def with_gain(self, name: str, value: float) -> PageSettings:
+        """These settings with gain ``name`` set to ``value``."""
+        return replace(self, gains=tuple((k, value if k == name else v)
+                                         for k, v in self.gains))
+
+    def option_map(self) -> dict[str, Any]:
+        """The controller options as keyword arguments of the controller class."""
+        back = {flag: key for key, flag in _OPTION_KEYS.items()}
+        return {back[f]: (float(v) if f == "--filter-time" else v) for f, v in self.options}
+
+
+@dataclass(frozen=True, slots=True)
+class PageRun:
+    """A run of the page: its samples, step metrics and what the command prints with it."""
+
+    settings: PageSettings  #: what was run
+    t: FloatArray  #: time [s]
+    r: FloatArray  #: reference, absolute position [m]
+    y: FloatArray  #: position, absolute [m]
+    u: FloatArray  #: valve command, fraction of the rated input [-]
+    alpha: FloatArray  #: self-tuning factor α [-] (NaN for controllers without one)
+    metrics: dict[str, float]  #: step metrics, as ``simulate --metrics`` prints them
+    notes: tuple[str, ...]  #: the notes the command prints on standard error
+    seconds: float  #: wall time of parse, build and run [s]
+    result: Any = field(repr=False)  #: the :class:`~fuzzyservo.sim.SimResult`
+
+
+def run_page(settings: PageSettings) -> PageRun:
+    """Run ``settings`` as ``fuzzyservo simulate`` would.
+
+    Raises
+    ------
+    FuzzyServoError
+        Anything the command line would reject; :func:`error_line` gives the line the CLI
+        prints for it.
+    """
+    from ..cli import build_parser
+    from ..commands.simulate import closed_loop
+
+    started = time.perf_counter()
+    args = build_parser(raising=True).parse_args(["simulate", *settings.argv(), "--metrics"])
+    if not (math.isfinite(args.substep) and args.substep > 0.0):
+        raise InputError(f"--substep must be finite and > 0 s, got {args.substep!r}")
+    closed = closed_loop(args)
+    res = closed.result
+    metrics = res.metrics().as_dict()
+    return PageRun(settings=settings, t=res.t, r=res.r, y=res.y, u=res.u,
+                   alpha=np.asarray(res.alpha, dtype=np.float64),
+                   metrics={k: float(v) for k, v in metrics.items()},
+                   notes=(*closed.settings.notes, *closed.notes),
+                   seconds=time.perf_counter() - started, result=res)
+
+
+def error_line(exc: BaseException) -> str:
+    """The one line the CLI prints for ``exc`` (``fuzzyservo: error: ...``; a usage error
+    names the command: ``fuzzyservo simulate: error: ...``)."""
+    from ..cli import UsageError
+
+    text = " ".join(str(exc).split())
+    if isinstance(exc, UsageError):
+        return text
+    if isinstance(exc, FuzzyServoError):
+        return f"fuzzyservo: error: {text}"
+    return f"fuzzyservo: error: {type(exc).__name__}: {text}"
+
+
+def default_gains(controller: str, plant: str) -> tuple[tuple[str, float], ...]:
+    """The gains the page starts a controller with: the shipped tuned gains of that plant
+    (``data/gains/PLANT-KIND.toml``), for ``p`` and ``pi`` the tuned PID's kp (and ki), and
+    the registry's default for a gain none of them gives."""
+    from importlib import resources
+
+    from ..files import read_gains_file
+
+    kind = controller_kind(controller)
+    source = {"p": "pid", "pi": "pid"}.get(controller, controller)
+    folder = Path(str(resources.files("fuzzyservo") / "data" / "gains"))
+    path = folder / f"{'nonlinear' if plant == 'nonlinear' else 'linear'}-{source}.toml"
+    shipped = read_gains_file(path).gains if path.is_file() else {}
+    out = []
+    for g in kind.gains:
+        value = shipped.get(g.name, g.default)
+        if value is None:  # no shipped file: the geometric middle of the tuning box
+            assert g.search is not None
+            lo, hi = g.search
+            value = math.sqrt(lo * hi) if g.log and lo > 0 else 0.5 * (lo + hi)
+        out.append((g.name, float(value)))
+    return tuple(out)
