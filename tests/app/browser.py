@@ -204,6 +204,11 @@ class Page:
         """Set a widget's value as the browser does when a user edits it."""
         self.js("fs.model(arguments[0]).value = arguments[1];", cls, value)
 
+    def show_tab(self, index: int) -> None:
+        """Show tab ``index`` of the page (0 response, 1 tuner, 2 fuzzy systems, 3 export),
+        as a click on its header does."""
+        self.js("fs.model('fs-tabs').active = arguments[0];", index)
+
     def click(self, cls: str) -> None:
         """Click a button (its model's click event, as the view sends it)."""
         self.js("const m = fs.model(arguments[0]); "

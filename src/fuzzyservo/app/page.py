@@ -93,6 +93,17 @@ def gain_range(controller: str, name: str, step: float) -> tuple[float, float, b
     return float(lo), float(hi), bool(g.log and lo > 0.0)
 
 
+def _prompt(widget: Any) -> Any:
+    """``widget`` with Panel's merge delay of browser changes set to 0.
+
+    Panel holds every change that comes from the browser for 50 ms (``Syncable._debounce``)
+    to merge a burst; that was half the page's redraw time. The page's own runner
+    (:class:`~fuzzyservo.app.latest.Latest`) already drops requests made stale by newer
+    ones, so the page's inputs are taken at once (docs/app.md, "Responsive")."""
+    widget._debounce = 0
+    return widget
+
+
 def _round3(v: float) -> float:
     """A slider position as a number a person would type: 3 significant digits."""
     return float(f"{v:.3g}")
@@ -142,6 +153,8 @@ class _GainRow:
         self.box = pn.widgets.FloatInput(value=value, width=130,
                                          css_classes=[f"fs-gain-{name}"],
                                          description=spec.description, format="0[.]000000")
+        _prompt(self.slider)
+        _prompt(self.box)
         self.slider.param.watch(self._slid, "value")
         self.box.param.watch(self._typed, "value")
         self.view = pn.Row(self.slider, self.box, sizing_mode="stretch_width")
@@ -215,6 +228,8 @@ class ServoPage:
         self._build_outputs()
         self._build_actions()
         self.view = self._layout()
+        for w in self.view.select(pn.widgets.Widget):
+            _prompt(w)
         self._rebuild_gains()
         self.submit()
 
@@ -361,8 +376,9 @@ class ServoPage:
         finally:
             self._quiet = False
         self._rebuild_gains()
-        self._refresh_systems_tab()
         self.submit()
+        if self.tabs.active == 2:
+            self._refresh_systems_tab()
 
     def _plant_changed(self, event: Any) -> None:
         """A new plant starts from that plant's shipped tuned gains."""
@@ -717,14 +733,16 @@ class ServoPage:
             argv += ["--no-rule-value", repr(s.no_rule_value)]
         return [*argv, "--out", out]
 
-    def _export(self, target: str, out: Path) -> None:
+    def _export(self, target: str, out: Path, shown: str) -> None:
+        """Run ``fuzzyservo export TARGET`` into ``out``; the files record the command with
+        ``--out shown``, the name the download has (so that command, run in the folder of
+        the download, writes the same files byte for byte)."""
         import contextlib
 
         from ..cli import build_parser
 
-        argv = self._export_args(target, str(out))
-        args = build_parser(raising=True).parse_args(argv)
-        args.argv = argv
+        args = build_parser(raising=True).parse_args(self._export_args(target, str(out)))
+        args.argv = self._export_args(target, shown)
         with contextlib.redirect_stdout(io.StringIO()):
             args.handler(args)
 
@@ -732,7 +750,7 @@ class ServoPage:
         try:
             with tempfile.TemporaryDirectory() as d:
                 out = Path(d) / "c"
-                self._export("c", out)
+                self._export("c", out, f"{self.settings.controller}-c")
                 buf = io.BytesIO()
                 with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
                     for f in sorted(out.iterdir()):
@@ -748,7 +766,7 @@ class ServoPage:
         try:
             with tempfile.TemporaryDirectory() as d:
                 out = Path(d) / f"{self.settings.controller}.fmu"
-                self._export("fmu", out)
+                self._export("fmu", out, out.name)
                 self.d_fmu.filename = out.name
                 return io.BytesIO(out.read_bytes())
         except Exception as exc:
@@ -894,13 +912,13 @@ class ServoPage:
         path = folder / name
         path.write_bytes(data)
         self.systems[role] = str(path)
-        self._refresh_systems_tab()
         self.submit()
+        self._refresh_systems_tab()
 
     def _paper_systems(self, event: Any = None) -> None:
         self.systems = {}
-        self._refresh_systems_tab()
         self.submit()
+        self._refresh_systems_tab()
 
     def _refresh_systems_tab(self) -> None:
         """Draw the fuzzy systems of the controller: membership functions, control surface and
@@ -984,7 +1002,8 @@ class ServoPage:
                              "makes the same run."),
             self.d_gains, self.d_csv, self.d_c, self.d_fmu)
         self.tabs = pn.Tabs(("Response", response), ("Tune", tuner), ("Fuzzy systems", systems),
-                            ("Export", export), dynamic=False, sizing_mode="stretch_width")
+                            ("Export", export), dynamic=False, sizing_mode="stretch_width",
+                            css_classes=["fs-tabs"])
         self.tabs.param.watch(self._tab_changed, "active")
         return pn.Row(sidebar, self.tabs, sizing_mode="stretch_width")
 

@@ -1,0 +1,124 @@
+"""The page's settings are a ``fuzzyservo simulate`` command line: its run and metrics are
+the command's, for every controller of the registry and both plant models."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import shlex
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from fuzzyservo.app import PageSettings, error_line, run_page
+from fuzzyservo.app.settings import default_gains
+from fuzzyservo.cli import main
+from fuzzyservo.registry import controller_kind, controller_names
+from tests.app.browser import free_port
+
+EXE = str(Path(sys.executable).parent / "fuzzyservo")
+
+
+def printed(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = main(argv)
+    return status, out.getvalue(), err.getvalue()
+
+
+def as_printed(metrics: dict[str, float]) -> dict[str, str]:
+    return {k: f"{v:.6g}" for k, v in metrics.items()}
+
+
+@pytest.mark.parametrize("plant", ["linear", "nonlinear"])
+@pytest.mark.parametrize("controller", controller_names())
+def test_the_run_is_the_commands(controller: str, plant: str) -> None:
+    s = PageSettings(controller=controller, plant=plant, gains=default_gains(controller, plant),
+                     overrides=(("load.mass", 12000.0),), delay=0.004, noise_std=2e-6,
+                     seed=3, reference="step:0.05", duration=3.0)
+    assert [g for g, _ in s.gains] == list(controller_kind(controller).gain_names)
+    run = run_page(s)
+    argv = shlex.split(s.command())
+    assert argv[:2] == ["fuzzyservo", "simulate"]
+    status, out, err = printed(argv[1:])
+    assert status == 0, err
+    shown = {ln.split()[0]: ln.split()[1] for ln in out.splitlines()}
+    assert shown == as_printed(run.metrics)
+    assert run.t.size == 3001 and run.r[-1] == pytest.approx(0.55, abs=1e-12)
+
+
+def test_gains_and_values_reach_the_command_exactly() -> None:
+    s = PageSettings(controller="pid", gains=(("kp", 0.1 + 0.2), ("ki", 1e-300),
+                                              ("kd", 0.0), ("n", float("inf"))))
+    argv = s.argv()
+    assert "kp=0.30000000000000004,ki=1e-300,kd=0.0,n=inf" in argv
+
+
+@pytest.mark.parametrize("change, needle", [
+    ({"gains": (("kp", -1.0),)}, "fuzzyservo: error: gain kp must be finite and >= 0"),
+    ({"reference": "sine:0.1"}, "fuzzyservo: error: reference 'sine:0.1'"),
+    ({"duration": float("nan")}, "fuzzyservo"),
+    ({"overrides": (("load.mass", 0.0),)}, "fuzzyservo: error: "),
+    ({"start": 1.5}, "fuzzyservo: error: --start must be a fraction of the stroke"),
+])
+def test_a_bad_value_is_the_clis_line(change: dict[str, object], needle: str) -> None:
+    fields: dict[str, object] = {"controller": "p", "gains": (("kp", 10.0),), **change}
+    s = PageSettings(**fields)  # type: ignore[arg-type]
+    with pytest.raises(Exception) as info:
+        run_page(s)
+    line = error_line(info.value)
+    assert line.startswith(needle)
+    status, _, err = printed(shlex.split(s.command())[1:])
+    assert status == 2 and err.strip() == line
+
+
+def test_the_paper_systems_read_from_files_run_as_the_paper_systems() -> None:
+    import tempfile
+
+    from fuzzyservo.paper import write_system_files
+
+    with tempfile.TemporaryDirectory() as d:
+        files = {p.stem: p for p in write_system_files(d)}
+        du = next(p for n, p in files.items() if "du" in n)
+        s = PageSettings(controller="fpi", gains=default_gains("fpi", "linear"))
+        with_file = PageSettings(controller="fpi", gains=s.gains, systems=(("du", str(du)),))
+        assert f"--du-system {du}" in with_file.command()
+        # the general engine evaluates the file's system; the paper's own kernel agrees to
+        # rounding (tests/fuzzy hold the engines to each other)
+        got, want = run_page(with_file).metrics, run_page(s).metrics
+        assert got == pytest.approx(want, rel=1e-9, abs=1e-15)
+
+
+def test_the_command_refuses_a_bad_port_or_set_in_one_line() -> None:
+    for argv, needle in ((["app", "--port", "0"], "--port must be in 1..65535"),
+                         (["app", "--set", "nope"], "unknown parameter set")):
+        status, _, err = printed(argv)
+        assert status == 2 and needle in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_port_in_use_is_one_line() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        status, _, err = printed(["app", "--no-browser", "--port", str(port)])
+    assert status == 2
+    assert err.startswith(f"fuzzyservo: error: --port {port}: cannot listen on 127.0.0.1")
+
+
+def test_another_host_is_served_with_a_warning() -> None:
+    port = free_port()
+    proc = subprocess.Popen([EXE, "app", "--no-browser", "--port", str(port), "--host",
+                             "0.0.0.0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        assert proc.stderr is not None
+        line = proc.stderr.readline()
+        assert line.startswith("fuzzyservo: warning: --host 0.0.0.0: the page is served to "
+                               "other machines")
+    finally:
+        proc.terminate()
+        proc.wait(20)
