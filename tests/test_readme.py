@@ -20,6 +20,7 @@ import json
 import re
 import shlex
 import subprocess
+import time
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -265,6 +266,45 @@ def _sweep_report(d: Path, out: str) -> None:
     assert html.startswith("<!DOCTYPE html>") and "data:image/png;base64," in html
 
 
+def _app(d: Path, out: str) -> None:
+    # out: the page the browser was sent to, fetched (see _run_app)
+    assert "<title>fuzzyservo: tune by looking</title>" in out and "static/js/bokeh" in out
+
+
+def _run_app(block: Block, words: list[str], scratch: Path) -> str:
+    """``fuzzyservo app``: a server until stopped. Run it with $BROWSER set to a command that
+    records the address the app asks the browser to open; fetch that page; stop the
+    server."""
+    import os
+    import sys
+    import urllib.request
+
+    from tests.app.browser import free_port
+
+    opened = scratch / "opened.txt"
+    browser = scratch / "browser.py"
+    browser.write_text("import sys, pathlib\n"
+                       f"pathlib.Path({str(opened)!r}).write_text(sys.argv[1])\n")
+    exe = str(Path(sys.executable).parent / "fuzzyservo")
+    env = dict(os.environ, BROWSER=f"{sys.executable} {browser} %s")
+    proc = subprocess.Popen([exe, *words[1:], "--port", str(free_port())], cwd=scratch,
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        for _ in range(1200):
+            if opened.exists() and opened.read_text():
+                break
+            assert proc.poll() is None, f"README line {block.line}: {proc.communicate()}"
+            time.sleep(0.1)
+        url = opened.read_text()
+        assert url.startswith("http://127.0.0.1:"), url
+        with urllib.request.urlopen(url, timeout=30) as page:
+            return str(page.read().decode())
+    finally:
+        proc.terminate()
+        proc.wait(30)
+
+
 def _fmu(name: str, identifier: str) -> Check:
     def check(d: Path, out: str) -> None:
         with zipfile.ZipFile(d / name) as zf:
@@ -304,6 +344,7 @@ CHECKS: dict[str, Check] = {
     "fuzzyservo simulate --gains pid.toml --metrics": _simulate_pid_file,
     "fuzzyservo tune --controller stfpi": _tune_stfpi,
     "fuzzyservo tune --controller pid2": _tune_pid2,
+    "fuzzyservo app": _app,
 }
 #: Not run: the suite itself.
 NOT_RUN = {"make test"}
@@ -351,6 +392,8 @@ def _run_command(block: Block, cmd: str, scratch: Path, capsys: pytest.CaptureFi
         assert proc.returncode == 0, f"README line {block.line}: {cmd!r}: {proc.stderr}"
         return proc.stdout
     assert words[0] == "fuzzyservo", f"README line {block.line}: {cmd!r}"
+    if words[:2] == ["fuzzyservo", "app"]:
+        return _run_app(block, words, scratch)
     capsys.readouterr()
     status = main(words[1:])
     out, err = capsys.readouterr()

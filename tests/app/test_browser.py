@@ -295,3 +295,27 @@ def test_the_downloads_are_what_the_commands_read_and_write(page: Page,
     starts = {v.name: v.start for v in md.modelVariables}
     for name in names:
         assert float(starts[name]) == float(page.value(f"fs-gain-{name}"))
+
+
+def test_a_fuzzy_system_from_a_file_runs_as_the_command_with_that_file(page: Page) -> None:
+    change(page, "fs-controller", "fpi")
+    page.show_tab(2)
+    source = Path(__file__).resolve().parents[2] / "src/fuzzyservo/data/systems/paper-du.fis"
+    field = page.wait(lambda: page.js(
+        "const v = fs.view('fs-du-file');"
+        "return v ? v.shadow_el.querySelector('input[type=file]') : null;"), 20, "the input")
+    n = page.run_number()
+    field.send_keys(str(source))
+    page.wait_for_run(n + 1)
+    settle(page)
+    command = page.value("fs-command")
+    argv = shlex.split(command)
+    used = Path(argv[argv.index("--du-system") + 1])
+    assert used.name == "paper-du.fis" and used.read_bytes() == source.read_bytes()
+    done = cli(*argv[1:])
+    assert done.returncode == 0, done.stderr
+    assert page.metrics() == shown_metrics(done.stdout)
+    # the systems tab shows the file's system and its rules
+    page.wait(lambda: "paper-du.fis" in page.js(
+        "return Array.from(Bokeh.index.all_views()).map(v => v.model.text || '').join(' ')"),
+        30, "the file's system in the tab")

@@ -150,7 +150,7 @@ class _GainRow:
                 name=label, start=self.lo, end=self.hi, step=(self.hi - self.lo) / 200,
                 value=self._pos(value), show_value=False, css_classes=[f"fs-slider-{name}"],
                 sizing_mode="stretch_width")
-        self.box = pn.widgets.FloatInput(value=value, width=130,
+        self.box = pn.widgets.FloatInput(value=value, width=125,
                                          css_classes=[f"fs-gain-{name}"],
                                          description=spec.description, format="0[.]000000")
         _prompt(self.slider)
@@ -242,9 +242,11 @@ class ServoPage:
             options={f"{n}: {controller_kind(n).title}": n for n in names},
             css_classes=["fs-controller"])
         self.w_plant = pn.widgets.Select(name="plant", options=list(plant_names()),
-                                         value=self.settings.plant, css_classes=["fs-plant"])
+                                         value=self.settings.plant, css_classes=["fs-plant"],
+                                         width=160)
         self.w_set = pn.widgets.Select(name="parameter set", options=list(SET_NAMES),
-                                       value=self.settings.param_set, css_classes=["fs-set"])
+                                       value=self.settings.param_set, css_classes=["fs-set"],
+                                       width=160)
         self.gain_rows: dict[str, _GainRow] = {}
         self.gain_column = pn.Column(sizing_mode="stretch_width")
         self.phys: dict[str, tuple[Any, Any]] = {}
@@ -254,7 +256,7 @@ class ServoPage:
                                             end=1.0, step=0.0025, show_value=False,
                                             sizing_mode="stretch_width",
                                             css_classes=[f"fs-slider-{ph.key}"])
-            box = pn.widgets.FloatInput(width=130, css_classes=[f"fs-phys-{ph.key}"])
+            box = pn.widgets.FloatInput(width=125, css_classes=[f"fs-phys-{ph.key}"])
             self.phys[ph.key] = (slider, box)
             slider.param.watch(partial(self._phys_slid, ph.key), "value")
             box.param.watch(partial(self._phys_typed, ph.key), "value")
@@ -274,8 +276,8 @@ class ServoPage:
                                                 css_classes=["fs-duration"])
         self.w_ts = pn.widgets.FloatInput(name="sample time [ms]", value=1.0, width=110,
                                           css_classes=["fs-ts"])
-        self.w_start = pn.widgets.FloatInput(name="start [fraction of stroke]", value=0.5,
-                                             width=150, css_classes=["fs-start"])
+        self.w_start = pn.widgets.FloatInput(name="start [x stroke]", value=0.5,
+                                             width=120, css_classes=["fs-start"])
         self.w_seed = pn.widgets.IntInput(name="noise seed", value=0, width=110,
                                           css_classes=["fs-seed"])
         self.w_options: dict[str, Any] = {}
@@ -529,14 +531,14 @@ class ServoPage:
                 line_width=1.4)
         self.legend = Legend(items=[LegendItem(label="this run", renderers=[live]),
                                     LegendItem(label="reference", renderers=[ref]),
-                                    *legend_items], location="bottom_right",
+                                    *legend_items], orientation="horizontal",
                              click_policy="hide")
-        fy.add_layout(self.legend)
+        fy.add_layout(self.legend, "above")
         self.fig_alpha = fa
         self.plots = pn.pane.Bokeh(gridplot([[fy], [fu], [fa]], toolbar_location="right",
                                             sizing_mode="stretch_width"),
-                                   sizing_mode="stretch_width")
-        self.w_metrics = pn.pane.HTML("", css_classes=["fs-metrics"], min_width=330)
+                                   sizing_mode="stretch_width", min_width=420)
+        self.w_metrics = pn.pane.HTML("", css_classes=["fs-metrics"], width=540)
         # HTML, not Markdown: a message's "noise_std" or "*" must show as written
         self.w_error = pn.pane.HTML("", visible=False, css_classes=["fs-error"],
                                     sizing_mode="stretch_width",
@@ -578,11 +580,12 @@ class ServoPage:
         body = []
         names = list(runs[0][2].metrics) if runs else []
         for name in names:
-            cells = "".join(f'<td style="text-align:right" data-metric="{name}">'
+            cells = "".join(f'<td style="text-align:right;padding-left:10px" '
+                            f'data-metric="{name}">'
                             f'{r.metrics[name]:.6g}</td>' for _, _, r in runs)
             body.append(f"<tr><td>{name}</td>{cells}<td>{html.escape(UNITS[name])}</td></tr>")
         self.w_metrics.object = (
-            '<table class="fs-metrics-table" style="font-size:13px;border-collapse:collapse">'
+            '<table class="fs-metrics-table" style="font-size:12px;border-collapse:collapse">'
             f"<tr><th>step metric</th>{head}<th>unit</th></tr>{''.join(body)}</table>")
 
     # ------------------------------------------------------------------ pins
@@ -626,7 +629,8 @@ class ServoPage:
                     if r is not rs[1]:
                         r.glyph.line_dash = pin.dash
             item: Any = self.legend.items[2 + i]
-            item.label = {"value": pin.label if pin else f"pin {i + 1}"}
+            item.label = {"value": (f"pin {i + 1}: {pin.run.settings.controller}" if pin
+                                    else f"pin {i + 1}")}
             item.visible = pin is not None
         rows = []
         for i, p in enumerate(self.pins):
@@ -860,9 +864,10 @@ class ServoPage:
             tuned = tune_controller(setup, params, progress=progress, systems=systems)
         except Exception as exc:
             stopped = any(isinstance(e, Stopped) for e in _chain(exc))
-            self._later(self._tune_done, None, None if stopped else exc)
+            self._later(self._tune_done, None, None if stopped else exc,
+                        time.monotonic() - started)
             return
-        self._later(self._tune_done, tuned, None)
+        self._later(self._tune_done, tuned, None, time.monotonic() - started)
 
     def _later(self, fn: Callable[..., None], *args: Any) -> None:
         try:
@@ -874,7 +879,7 @@ class ServoPage:
         self.w_tune_progress.value = value
         self.w_tune_status.object = html.escape(text)
 
-    def _tune_done(self, tuned: Any, exc: BaseException | None) -> None:
+    def _tune_done(self, tuned: Any, exc: BaseException | None, seconds: float) -> None:
         self.b_tune.disabled = False
         self.b_stop.disabled = True
         if tuned is None:
@@ -886,12 +891,21 @@ class ServoPage:
             return
         self.w_tune_progress.value = 1000
         m = tuned.metrics
+        warnings = []
+        if not tuned.converged:  # the CLI's warnings, in the page
+            warnings.append(f"the search did not converge within {self.w_maxiter.value} "
+                            f"generations per stage: raise 'max generations'")
+        if not tuned.feasible:
+            warnings.append("no gains found that meet the constraints; these are the best "
+                            "found")
+        for name, side in tuned.at_bounds.items():
+            warnings.append(f"{name} ended on its {side} bound")
         self.w_tune_status.object = html.escape(
             f"tuned: {', '.join(f'{k}={v:.6g}' for k, v in tuned.gains.items())}; "
-            f"{tuned.objective_value:.6g} {self.w_objective.value}, overshoot "
-            f"{m['overshoot']:.3g} %, converged: {'yes' if tuned.converged else 'no'}, "
-            f"feasible: {'yes' if tuned.feasible else 'no'}, {tuned.n_evaluations} runs in "
-            f"{tuned.elapsed:.1f} s. Loaded into the sliders.")
+            f"{self.w_objective.value} {tuned.objective_value:.6g}, overshoot "
+            f"{m['overshoot']:.3g} %, {tuned.n_evaluations} runs in {seconds:.1f} s. "
+            f"Loaded into the sliders.") + "".join(
+                f"<br><b>warning:</b> {html.escape(w)}" for w in warnings)
         for name, value in tuned.gains.items():
             if name in self.gain_rows:
                 self.gain_rows[name].set(float(value))
@@ -942,7 +956,7 @@ class ServoPage:
                         mamdani = du_system() if role == "du" else alpha_system()
                         rules: Any = pn.pane.Matplotlib(
                             render_rule_table(rule_table_data(
-                                mamdani, f"{role} rules (paper)")), dpi=80, tight=True,
+                                mamdani, f"{role} rules (paper)")), dpi=64, tight=True,
                             format="png")
                     else:
                         system = read_system(path)
@@ -952,11 +966,12 @@ class ServoPage:
                             "<pre style='font-size:12px'>" + html.escape("\n".join(lines))
                             + "</pre>")
                     fig = pn.pane.Matplotlib(render_system(system_figure_data(system, 41)),
-                                             dpi=70, tight=True, format="png")
+                                             dpi=56, tight=True, format="png")
                     self._figures[key] = (rules, fig)
                 rules, fig = self._figures[key]
                 where = "the paper's (Fig. 3)" if path is None else html.escape(path)
-                items += [pn.pane.Markdown(f"### {role} system: {where}"), rules, fig]
+                items += [pn.pane.Markdown(f"### {role} system: {where}"),
+                          pn.Row(rules, fig)]
             except Exception as exc:
                 items.append(pn.pane.HTML(html.escape(error_line(exc)),
                                           styles={"color": "#842029"}))
@@ -969,17 +984,18 @@ class ServoPage:
             pn.pane.Markdown("### Controller"), self.w_controller, self.gain_column,
             pn.Card(*self.w_options.values(), title="controller options", collapsed=True,
                     sizing_mode="stretch_width"),
-            pn.pane.Markdown("### Plant"), pn.Row(self.w_plant, self.w_set),
+            pn.pane.Markdown("### Plant"), pn.Row(self.w_plant, self.w_set, width=360),
             self.phys_column, self.w_seed,
             pn.pane.Markdown("### Reference and run"), self.w_shape, self.w_step, self.w_spec,
             pn.Row(self.w_duration, self.w_ts, self.w_start),
-            width=430, styles={"overflow-y": "auto"})
+            width=380, styles={"overflow-y": "auto", "overflow-x": "hidden"})
         response = pn.Column(
             self.w_error,
             pn.Row(self.plots, pn.Column(self.w_metrics, pn.Row(self.b_pin, self.b_clear),
-                                         self.pin_list, width=420),
+                                         self.pin_list, width=550),
                    sizing_mode="stretch_width"),
-            self.w_status, pn.Row(self.w_command, self.b_copy, sizing_mode="stretch_width"),
+            self.w_status, pn.Row(self.w_command, self.b_copy, sizing_mode="stretch_width",
+                                  min_width=400),
             sizing_mode="stretch_width")
         tuner = pn.Column(
             pn.pane.Markdown(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 import tempfile
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,18 @@ __all__ = ["LOCAL_HOSTS", "serve"]
 
 #: Addresses that reach only this machine.
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
+
+
+def _open(url: str) -> None:
+    import webbrowser
+
+    try:
+        opened = webbrowser.open(url)
+    except Exception:
+        opened = False
+    if not opened:
+        print(f"fuzzyservo app: no browser to open here; open {url}", file=sys.stderr,
+              flush=True)
 
 
 def serve(*, port: int, host: str = "127.0.0.1", param_set: str = "paper",
@@ -63,15 +76,10 @@ def serve(*, port: int, host: str = "127.0.0.1", param_set: str = "paper",
     if ready is not None:
         ready(url)
     if open_browser:
-        import webbrowser
-
-        try:
-            opened = webbrowser.open(url)
-        except Exception:
-            opened = False
-        if not opened:
-            print(f"fuzzyservo app: no browser to open here; open {url}", file=sys.stderr,
-                  flush=True)
+        # once the server is running: a browser command that waits for its window to close
+        # ($BROWSER) must not hold the page's server
+        server.io_loop.add_callback(
+            lambda: threading.Thread(target=_open, args=(url,), daemon=True).start())
     try:
         server.io_loop.start()
     finally:
