@@ -74,7 +74,7 @@ test: lint oracles browser precompile
 test-fast: lint oracles browser precompile
 	$(BIN)/python -m pytest -n 2 -q -m "not slow"
 
-bench: precompile $(FLVENV)/.installed-stamp
+bench: browser precompile $(FLVENV)/.installed-stamp
 	$(BIN)/python benchmarks/run_all.py --fuzzylite-python $(FLVENV)/bin/python
 
 # numba's on-disk cache is invalidated by a change of the function's own file only, not of a
