@@ -33,7 +33,7 @@ def as_printed(metrics: dict[str, float]) -> dict[str, str]:
     return {k: f"{v:.6g}" for k, v in metrics.items()}
 
 
-@pytest.mark.parametrize("plant", ["linear", "nonlinear"])
+@pytest.mark.parametrize("plant", ["linear", "small-signal", "nonlinear"])
 @pytest.mark.parametrize("controller", controller_names())
 def test_the_run_is_the_commands(controller: str, plant: str) -> None:
     s = PageSettings(controller=controller, plant=plant, gains=default_gains(controller, plant),
@@ -75,6 +75,36 @@ def test_a_bad_value_is_the_clis_line(change: dict[str, object], needle: str) ->
     assert status == 2 and err.strip() == line
 
 
+def test_numbers_go_as_flag_value_so_a_negative_one_is_named() -> None:
+    s = PageSettings(controller="p", gains=(("kp", 10.0),), noise_std=-1e-6)
+    assert "--noise-std=-1e-06" in s.argv()
+    with pytest.raises(Exception) as info:
+        run_page(s)
+    assert error_line(info.value) == "fuzzyservo: error: noise_std must be finite and >= 0 m, " \
+                                     "got -1e-06"
+
+
+def test_engineering_units_shift_the_decimal_point() -> None:
+    from fuzzyservo.app import PHYSICAL
+
+    noise = next(p for p in PHYSICAL if p.key == "noise_std")
+    assert noise.to_si(2.5) == 2.5e-6 != 2.5 * 1e-6
+    assert noise.from_si(2.5e-6) == 2.5
+    pressure = next(p for p in PHYSICAL if p.key == "supply.pressure")
+    assert pressure.to_si(70.0) == 7e6 and pressure.from_si(7e6) == 70.0
+
+
+def test_the_page_refuses_a_run_too_long_to_draw_in_one_line() -> None:
+    from fuzzyservo.app.settings import MAX_PAGE_SAMPLES
+
+    s = PageSettings(controller="p", gains=(("kp", 10.0),), duration=1000.0)
+    with pytest.raises(Exception) as info:
+        run_page(s)
+    assert error_line(info.value) == (
+        f"fuzzyservo: error: the page draws at most {MAX_PAGE_SAMPLES:,} samples per run; "
+        f"duration / sample time is 1,000,000: shorten the run or run it with the command")
+
+
 def test_the_paper_systems_read_from_files_run_as_the_paper_systems() -> None:
     import tempfile
 
@@ -94,7 +124,8 @@ def test_the_paper_systems_read_from_files_run_as_the_paper_systems() -> None:
 
 def test_the_command_refuses_a_bad_port_or_set_in_one_line() -> None:
     for argv, needle in ((["app", "--port", "0"], "--port must be in 1..65535"),
-                         (["app", "--set", "nope"], "unknown parameter set")):
+                         (["app", "--set", "nope"], "unknown parameter set"),
+                         (["app", "--host", "::1"], "an IPv6 address cannot be served")):
         status, _, err = printed(argv)
         assert status == 2 and needle in err and len(err.strip().splitlines()) == 1
 

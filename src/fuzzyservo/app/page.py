@@ -9,6 +9,7 @@ Panel is imported here only: ``import fuzzyservo`` and the other commands never 
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import html
 import io
@@ -45,6 +46,7 @@ from .settings import (
     default_gains,
     error_line,
     run_page,
+    shift,
 )
 
 __all__ = ["MAX_PINS", "PIN_COLOURS", "ServoPage", "gain_range"]
@@ -218,6 +220,7 @@ class ServoPage:
         self.current: PageRun | None = None
         self.pins: list[_Pin] = []
         self.tuned: Any = None  # TunedGains of the last tuning, while the gains are its
+        self.tuning: tuple[str, str] = ("", "")  # controller and plant being tuned
         self.tune_stop = threading.Event()
         self.systems: dict[str, str] = {}
         self._figures: dict[tuple[str, str], Any] = {}
@@ -291,8 +294,7 @@ class ServoPage:
                                           value=None, width=150, placeholder="(default 0)")
             w.param.watch(self._changed, "value")
             self.w_options[flag] = w
-        for w in (self.w_plant, self.w_set, self.w_duration, self.w_ts, self.w_start,
-                  self.w_seed):
+        for w in (self.w_duration, self.w_ts, self.w_start, self.w_seed):
             w.param.watch(self._changed, "value")
         self.w_controller.param.watch(self._controller_changed, "value")
         self.w_plant.param.watch(self._plant_changed, "value")
@@ -315,7 +317,7 @@ class ServoPage:
                 else:
                     group, fld = ph.key.split(".")
                     si = float(getattr(getattr(params, group), fld))
-                shown = si / ph.scale
+                shown = ph.from_si(si)
                 lo, hi = (ph.low * shown, ph.high * shown) if ph.relative else (ph.low,
                                                                                  ph.high)
                 slider.param.update(start=lo, end=hi, step=(hi - lo) / 400)
@@ -334,7 +336,7 @@ class ServoPage:
             self.phys[key][1].value = _round3(event.new)
         finally:
             self._quiet = False
-        self._phys_si[key] = _round3(event.new) * ph.scale
+        self._phys_si[key] = ph.to_si(_round3(event.new))
         self.submit()
 
     def _phys_typed(self, key: str, event: Any) -> None:
@@ -348,7 +350,7 @@ class ServoPage:
                 slider.value = min(max(event.new, slider.start), slider.end)
         finally:
             self._quiet = False
-        self._phys_si[key] = float(event.new) * ph.scale
+        self._phys_si[key] = ph.to_si(float(event.new))
         self.submit()
 
     def _rebuild_gains(self) -> None:
@@ -452,15 +454,15 @@ class ServoPage:
         systems = tuple((role, path) for role, path in sorted(self.systems.items())
                         if role in kind.systems)
 
-        def num(w: Any, scale: float = 1.0) -> float:
-            return math.nan if w.value is None else float(w.value) * scale
+        def num(w: Any, exponent: int = 0) -> float:
+            return math.nan if w.value is None else shift(float(w.value), exponent)
 
         return PageSettings(
             controller=self.w_controller.value, gains=gains, plant=self.w_plant.value,
             param_set=self.w_set.value, overrides=tuple(overrides), delay=delay,
             noise_std=noise, seed=int(self.w_seed.value or 0),
             reference=str(self.w_spec.value or "").strip(), duration=num(self.w_duration),
-            ts=num(self.w_ts, 1e-3), start=num(self.w_start), options=tuple(options),
+            ts=num(self.w_ts, -3), start=num(self.w_start), options=tuple(options),
             systems=systems,
             no_rule_value=(None if self.w_no_rule.value is None or not systems
                            else float(self.w_no_rule.value)))
@@ -552,6 +554,12 @@ class ServoPage:
                                                   value="", height=90,
                                                   sizing_mode="stretch_width",
                                                   css_classes=["fs-command"])
+        # what is copied is the command of the settings: an edit in the box is undone
+        self.w_command.param.watch(self._command_edited, "value")
+
+    def _command_edited(self, event: Any) -> None:
+        if event.new != self.settings.command():
+            self.w_command.value = self.settings.command()
 
     @staticmethod
     def _columns(run: PageRun | None) -> dict[str, Any]:
@@ -601,10 +609,11 @@ class ServoPage:
             return
         s = self.current.settings
         colour = PIN_COLOURS[s.controller]
-        same = sum(1 for p in self.pins if p.run.settings.controller == s.controller)
+        used = {p.dash for p in self.pins if p.run.settings.controller == s.controller}
+        dash = next((d for d in _DASHES if d not in used), _DASHES[0])
         gains = ", ".join(f"{k}={v:.4g}" for k, v in s.gains)
         label = f"{s.controller} ({gains}), {s.plant}"
-        self.pins.append(_Pin(label, colour, _DASHES[same % len(_DASHES)], self.current))
+        self.pins.append(_Pin(label, colour, dash, self.current))
         self._draw_pins()
 
     def unpin(self, index: int, event: Any = None) -> None:
@@ -675,7 +684,7 @@ class ServoPage:
         self.w_restarts = pn.widgets.IntInput(name="searches per stage", value=3, width=140,
                                               css_classes=["fs-restarts"])
         self.w_popsize = pn.widgets.IntInput(name="population x", value=10, width=110)
-        self.w_max_os = pn.widgets.FloatInput(name="max overshoot [%] (none: empty)",
+        self.w_max_os = pn.widgets.FloatInput(name="max overshoot [%] (empty: tune's 10)",
                                               value=None, width=200)
         self.b_tune = pn.widgets.Button(name="tune", button_type="primary",
                                         css_classes=["fs-tune"])
@@ -702,13 +711,21 @@ class ServoPage:
         self.w_no_rule.param.watch(self._changed, "value")
         self.systems_view = pn.Column(sizing_mode="stretch_width")
 
+    def _shown(self) -> PageSettings:
+        """The settings of the run the page shows (after an error, the last good one's: the
+        downloads are of what is drawn)."""
+        return self.current.settings if self.current is not None else self.settings
+
     def _gains_file(self) -> io.BytesIO:
         from ..files import write_gains_toml
 
-        s = self.settings
-        if self.tuned is not None and dict(self.tuned.gains) == s.gain_map():
+        s = self._shown()
+        t = self.tuned
+        if (t is not None and t.controller == s.controller and t.setup.plant == s.plant
+                and dict(t.gains) == s.gain_map()):
+            self.d_gains.filename = f"{s.controller}-tuned.toml"
             with tempfile.TemporaryDirectory() as d:
-                path = write_gains_toml(Path(d) / "gains.toml", self.tuned)
+                path = write_gains_toml(Path(d) / "gains.toml", t)
                 return io.BytesIO(path.read_bytes())
         import tomli_w
 
@@ -726,15 +743,15 @@ class ServoPage:
         return io.BytesIO(buf.getvalue().encode())
 
     def _export_args(self, target: str, out: str) -> list[str]:
-        s = self.settings
+        s = self._shown()
         argv = ["export", target, "--controller", s.controller, "--gains",
                 ",".join(f"{k}={v!r}" for k, v in s.gains), "--ts", repr(s.ts)]
         for flag, value in s.options:
-            argv += [flag, value]
+            argv += [f"{flag}={value}"]
         for role, path in s.systems:
             argv += [f"--{role}-system", path]
         if s.no_rule_value is not None:
-            argv += ["--no-rule-value", repr(s.no_rule_value)]
+            argv += [f"--no-rule-value={s.no_rule_value!r}"]
         return [*argv, "--out", out]
 
     def _export(self, target: str, out: Path, shown: str) -> None:
@@ -754,13 +771,13 @@ class ServoPage:
         try:
             with tempfile.TemporaryDirectory() as d:
                 out = Path(d) / "c"
-                self._export("c", out, f"{self.settings.controller}-c")
+                self._export("c", out, f"{self._shown().controller}-c")
                 buf = io.BytesIO()
                 with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
                     for f in sorted(out.iterdir()):
                         z.write(f, f.name)
                 buf.seek(0)
-                self.d_c.filename = f"{self.settings.controller}-c.zip"
+                self.d_c.filename = f"{self._shown().controller}-c.zip"
                 return buf
         except Exception as exc:
             self._show_error(exc)
@@ -769,7 +786,7 @@ class ServoPage:
     def _fmu_file(self) -> io.BytesIO | None:
         try:
             with tempfile.TemporaryDirectory() as d:
-                out = Path(d) / f"{self.settings.controller}.fmu"
+                out = Path(d) / f"{self._shown().controller}.fmu"
                 self._export("fmu", out, out.name)
                 self.d_fmu.filename = out.name
                 return io.BytesIO(out.read_bytes())
@@ -786,23 +803,29 @@ class ServoPage:
     def tune_argv(self) -> list[str]:
         """``fuzzyservo tune`` arguments that tune the controller on the page's plant."""
         s = self.settings
+        if s.options:
+            from ..errors import InputError
+
+            raise InputError(f"the tuner tunes with the controller's default options; set "
+                             f"{', '.join(f for f, _ in s.options)} back to (default) in "
+                             f"'controller options' to tune")
         step = _step_of(s.reference)
         if step is None or s.reference.count(":") > 1:
             from ..errors import InputError
 
             raise InputError(f"the tuner tunes a step response from t = 0: choose the "
                              f"reference step:A, not {s.reference!r}")
-        argv = ["tune", "--controller", s.controller, "--plant", s.plant, "--step", repr(step),
-                "--duration", repr(s.duration), "--ts", repr(s.ts), "--start", repr(s.start),
-                "--delay", repr(s.delay), "--objective", str(self.w_objective.value),
+        argv = ["tune", "--controller", s.controller, "--plant", s.plant, f"--step={step!r}",
+                f"--duration={s.duration!r}", f"--ts={s.ts!r}", f"--start={s.start!r}",
+                f"--delay={s.delay!r}", "--objective", str(self.w_objective.value),
                 "--maxiter", str(self.w_maxiter.value), "--restarts",
                 str(self.w_restarts.value), "--popsize", str(self.w_popsize.value)]
         if self.w_max_os.value is not None:
-            argv += ["--max-overshoot", repr(float(self.w_max_os.value))]
+            argv += [f"--max-overshoot={float(self.w_max_os.value)!r}"]
         for role, path in s.systems:
             argv += [f"--{role}-system", path]
         if s.no_rule_value is not None:
-            argv += ["--no-rule-value", repr(s.no_rule_value)]
+            argv += [f"--no-rule-value={s.no_rule_value!r}"]
         if s.param_set != "paper":
             argv += ["--set", s.param_set]
         for key, value in s.overrides:
@@ -823,6 +846,7 @@ class ServoPage:
         self.w_tune_command.object = html.escape(
             "fuzzyservo " + shlex.join([*argv, "--out", "gains.toml"]))
         self.tune_stop.clear()
+        self.tuning = (self.settings.controller, self.settings.plant)
         self.b_tune.disabled = True
         self.b_stop.disabled = False
         self.w_tune_progress.value = 0
@@ -890,6 +914,14 @@ class ServoPage:
                 self.w_tune_status.object = "tuning stopped; the gains are unchanged"
             return
         self.w_tune_progress.value = 1000
+        now = (self.settings.controller, self.settings.plant)
+        if now != self.tuning:
+            self.w_tune_status.object = html.escape(
+                f"the tuning of {self.tuning[0]} on the {self.tuning[1]} plant has ended, "
+                f"but the page now shows {now[0]} on the {now[1]} plant: its gains "
+                f"({', '.join(f'{k}={v:.6g}' for k, v in tuned.gains.items())}) are not "
+                f"loaded")
+            return
         m = tuned.metrics
         warnings = []
         if not tuned.converged:  # the CLI's warnings, in the page
@@ -926,6 +958,8 @@ class ServoPage:
         path = folder / name
         path.write_bytes(data)
         self.systems[role] = str(path)
+        with contextlib.suppress(Exception):  # the same file may be chosen again later
+            w.clear()
         self.submit()
         self._refresh_systems_tab()
 

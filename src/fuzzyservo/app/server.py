@@ -12,7 +12,7 @@ from typing import Any
 __all__ = ["LOCAL_HOSTS", "serve"]
 
 #: Addresses that reach only this machine.
-LOCAL_HOSTS = ("127.0.0.1", "localhost", "::1")
+LOCAL_HOSTS = ("127.0.0.1", "localhost")
 
 
 def _open(url: str) -> None:

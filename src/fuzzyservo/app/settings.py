@@ -18,6 +18,7 @@ import math
 import shlex
 import time
 from dataclasses import dataclass, field, replace
+from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,7 @@ from ..errors import FuzzyServoError, InputError
 from ..registry import DEFAULT_SUBSTEP, controller_kind
 
 __all__ = [
+    "MAX_PAGE_SAMPLES",
     "OPTION_CHOICES",
     "PHYSICAL",
     "PageRun",
@@ -46,10 +48,27 @@ class Physical:
     key: str  #: ``group.field`` of :class:`~fuzzyservo.plant.ServoParams`, or a run option
     label: str  #: what the page calls it
     unit: str  #: unit shown in the page
-    scale: float  #: SI value = shown value x scale
+    exponent: int  #: SI value = shown value x 10**exponent (a shift of the decimal point)
     low: float  #: slider's lower end [shown unit], or [x the set's value] when ``relative``
     high: float  #: slider's upper end, as ``low``
     relative: bool = False  #: the slider's ends are factors of the parameter set's value
+
+    def to_si(self, shown: float) -> float:
+        """The SI value of ``shown``: its decimal point shifted (2.5 µm is 2.5e-06 m, not the
+        2.4999999999999998e-06 of a multiplication), so the command reads as typed."""
+        return shift(shown, self.exponent)
+
+    def from_si(self, si: float) -> float:
+        """The value shown for ``si``."""
+        return shift(si, -self.exponent)
+
+
+def shift(value: float, exponent: int) -> float:
+    """``value`` x 10**exponent, rounded once (decimal shift of its shortest repr)."""
+    v = float(value)
+    if not math.isfinite(v) or exponent == 0:
+        return v
+    return float(Decimal(repr(v)).scaleb(exponent))
 
 
 #: The physical changes a user tries first, in the page's order; the sliders span the C8
@@ -57,14 +76,14 @@ class Physical:
 #: 50 ms, docs/sweep.md) and beyond; the number boxes take any value the model allows.
 #: ``delay`` and ``noise_std`` are run options (``--delay``, ``--noise-std``).
 PHYSICAL: tuple[Physical, ...] = (
-    Physical(key="load.mass", label="load mass", unit="kg", scale=1.0, low=0.25, high=4.0,
+    Physical(key="load.mass", label="load mass", unit="kg", exponent=0, low=0.25, high=4.0,
              relative=True),
-    Physical(key="fluid.oil_bulk_modulus", label="oil bulk modulus", unit="GPa", scale=1e9,
+    Physical(key="fluid.oil_bulk_modulus", label="oil bulk modulus", unit="GPa", exponent=9,
              low=0.25, high=4.0, relative=True),
-    Physical(key="supply.pressure", label="supply pressure", unit="bar", scale=1e5, low=0.5,
+    Physical(key="supply.pressure", label="supply pressure", unit="bar", exponent=5, low=0.5,
              high=2.0, relative=True),
-    Physical(key="delay", label="hose delay", unit="ms", scale=1e-3, low=0.0, high=100.0),
-    Physical(key="noise_std", label="sensor noise (std)", unit="µm", scale=1e-6, low=0.0,
+    Physical(key="delay", label="hose delay", unit="ms", exponent=-3, low=0.0, high=100.0),
+    Physical(key="noise_std", label="sensor noise (std)", unit="µm", exponent=-6, low=0.0,
              high=100.0),
 )
 
@@ -79,6 +98,11 @@ OPTION_CHOICES: dict[str, tuple[str, ...]] = {
 #: Option key of the controller classes -> CLI flag.
 _OPTION_KEYS = {"anti_windup": "--anti-windup", "initial_error": "--initial-error",
                 "de_per": "--de-per", "filter_time": "--filter-time"}
+
+
+#: Samples (duration / sample time) of a run the page draws: every sample of each series goes
+#: to the browser on each redraw, 200,000 are ~8 MB and a 200 s run at 1 ms.
+MAX_PAGE_SAMPLES = 200_000
 
 
 def _num(v: float) -> str:
@@ -148,20 +172,22 @@ class PageSettings:
         out = ["--plant", self.plant, "--controller", self.controller]
         if gains:
             out += ["--gains", gains]
-        out += ["--reference", self.reference, "--duration", _num(self.duration),
-                "--ts", _num(self.ts), "--start", _num(self.start)]
+        # numbers as --flag=value: a negative one (a typo the CLI must name) would otherwise
+        # read as an option of its own
+        out += ["--reference", self.reference, f"--duration={_num(self.duration)}",
+                f"--ts={_num(self.ts)}", f"--start={_num(self.start)}"]
         if self.delay != 0.0:
-            out += ["--delay", _num(self.delay)]
+            out += [f"--delay={_num(self.delay)}"]
         if self.noise_std != 0.0:
-            out += ["--noise-std", _num(self.noise_std), "--seed", str(self.seed)]
+            out += [f"--noise-std={_num(self.noise_std)}", f"--seed={self.seed}"]
         if self.plant == "nonlinear" and self.substep != DEFAULT_SUBSTEP:
-            out += ["--substep", _num(self.substep)]
+            out += [f"--substep={_num(self.substep)}"]
         for flag, text in self.options:
-            out += [flag, text]
+            out += [f"{flag}={text}"]
         for role, file in self.systems:
             out += [f"--{role}-system", file]
         if self.no_rule_value is not None:
-            out += ["--no-rule-value", _num(self.no_rule_value)]
+            out += [f"--no-rule-value={_num(self.no_rule_value)}"]
         if self.param_set != "paper":
             out += ["--set", self.param_set]
         for key, number in self.overrides:
@@ -216,6 +242,11 @@ def run_page(settings: PageSettings) -> PageRun:
     from ..commands.simulate import closed_loop
 
     started = time.perf_counter()
+    samples = settings.duration / settings.ts
+    if samples > MAX_PAGE_SAMPLES:  # (NaN passes on to the CLI's own message)
+        raise InputError(f"the page draws at most {MAX_PAGE_SAMPLES:,} samples per run; "
+                         f"duration / sample time is {samples:,.0f}: shorten the run or run "
+                         f"it with the command")
     args = _parser().parse_args(["simulate", *settings.argv(), "--metrics"])
     if not (math.isfinite(args.substep) and args.substep > 0.0):
         raise InputError(f"--substep must be finite and > 0 s, got {args.substep!r}")

@@ -48,6 +48,10 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(f"--set {args.param_set!r}: unknown parameter set; allowed: "
                              f"{', '.join(SET_NAMES)}")
     paper.named_set(args.param_set)
+    if ":" in args.host:
+        raise ParameterError(f"--host {args.host}: an IPv6 address cannot be served (Bokeh's "
+                             f"server checks the page's origin by host:port); give an IPv4 "
+                             f"address or a name, e.g. 127.0.0.1")
     try:
         import panel  # noqa: F401
     except ImportError:
