@@ -748,11 +748,7 @@ class ServoPage:
                 ",".join(f"{k}={v!r}" for k, v in s.gains), "--ts", repr(s.ts)]
         for flag, value in s.options:
             argv += [f"{flag}={value}"]
-        for role, path in s.systems:
-            argv += [f"--{role}-system", path]
-        if s.no_rule_value is not None:
-            argv += [f"--no-rule-value={s.no_rule_value!r}"]
-        return [*argv, "--out", out]
+        return [*argv, *s.system_args(), "--out", out]
 
     def _export(self, target: str, out: Path, shown: str) -> None:
         """Run ``fuzzyservo export TARGET`` into ``out``; the files record the command with
@@ -822,15 +818,7 @@ class ServoPage:
                 str(self.w_restarts.value), "--popsize", str(self.w_popsize.value)]
         if self.w_max_os.value is not None:
             argv += [f"--max-overshoot={float(self.w_max_os.value)!r}"]
-        for role, path in s.systems:
-            argv += [f"--{role}-system", path]
-        if s.no_rule_value is not None:
-            argv += [f"--no-rule-value={s.no_rule_value!r}"]
-        if s.param_set != "paper":
-            argv += ["--set", s.param_set]
-        for key, value in s.overrides:
-            argv += ["--param", f"{key}={value!r}"]
-        return argv
+        return [*argv, *s.system_args(), *s.parameter_args()]
 
     def start_tuning(self, event: Any = None) -> None:
         """Run the tuner in a thread; its progress is shown, its result loaded."""

@@ -184,12 +184,21 @@ class PageSettings:
             out += [f"--substep={_num(self.substep)}"]
         for flag, text in self.options:
             out += [f"{flag}={text}"]
+        return [*out, *self.system_args(), *self.parameter_args()]
+
+    def system_args(self) -> list[str]:
+        """``--du-system``, ``--alpha-system``, ``--no-rule-value``: the fuzzy systems from
+        files (what ``simulate``, ``tune`` and ``export`` take alike)."""
+        out: list[str] = []
         for role, file in self.systems:
             out += [f"--{role}-system", file]
         if self.no_rule_value is not None:
             out += [f"--no-rule-value={_num(self.no_rule_value)}"]
-        if self.param_set != "paper":
-            out += ["--set", self.param_set]
+        return out
+
+    def parameter_args(self) -> list[str]:
+        """``--set`` and ``--param``: the servo's parameters (``simulate`` and ``tune``)."""
+        out = [] if self.param_set == "paper" else ["--set", self.param_set]
         for key, number in self.overrides:
             out += ["--param", f"{key}={_num(number)}"]
         return out
