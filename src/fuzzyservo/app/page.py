@@ -34,9 +34,11 @@ from bokeh.models.annotations import Legend, LegendItem
 from bokeh.plotting import figure
 
 from ..commands.metrics import UNITS
+from ..errors import FuzzyServoError
 from ..paper.published import SET_NAMES, named_set
 from ..plots.study_figures import CONTROLLER_COLOURS
 from ..registry import controller_kind, controller_names, plant_names
+from ..sim import Step, parse_reference
 from .latest import Latest
 from .settings import (
     OPTION_CHOICES,
@@ -111,15 +113,14 @@ def _round3(v: float) -> float:
     return float(f"{v:.3g}")
 
 
-def _step_of(spec: str) -> float | None:
-    """The amplitude of a ``step:A[:T]`` spec [m], None for another or a malformed one."""
-    kind, _, body = spec.partition(":")
-    if kind.strip().lower() != "step":
-        return None
+def _step_of(spec: str) -> Step | None:
+    """The step a reference spec names (the CLI's parser), None for another shape or a spec
+    that does not parse (the run reports that)."""
     try:
-        return float(body.split(":")[0])
-    except ValueError:
+        ref = parse_reference(spec)
+    except FuzzyServoError:
         return None
+    return ref if isinstance(ref, Step) else None
 
 
 @dataclass(frozen=True, slots=True)
@@ -310,9 +311,7 @@ class ServoPage:
         try:
             for ph in PHYSICAL:
                 slider, box = self.phys[ph.key]
-                if ph.key == "delay":
-                    si = 0.0
-                elif ph.key == "noise_std":
+                if "." not in ph.key:  # a run option (delay, noise): none
                     si = 0.0
                 else:
                     group, fld = ph.key.split(".")
@@ -354,7 +353,8 @@ class ServoPage:
         self.submit()
 
     def _rebuild_gains(self) -> None:
-        step = _step_of(str(self.w_spec.value)) or 0.1
+        ref = _step_of(str(self.w_spec.value))
+        step = ref.amplitude if ref is not None else 0.1
         self.gain_rows = {}
         for name, value in self.settings.gains:
             self.gain_rows[name] = _GainRow(self.settings.controller, name, value, step,
@@ -805,13 +805,14 @@ class ServoPage:
             raise InputError(f"the tuner tunes with the controller's default options; set "
                              f"{', '.join(f for f, _ in s.options)} back to (default) in "
                              f"'controller options' to tune")
-        step = _step_of(s.reference)
-        if step is None or s.reference.count(":") > 1:
+        ref = _step_of(s.reference)
+        if ref is None or ref.time != 0.0:
             from ..errors import InputError
 
             raise InputError(f"the tuner tunes a step response from t = 0: choose the "
                              f"reference step:A, not {s.reference!r}")
-        argv = ["tune", "--controller", s.controller, "--plant", s.plant, f"--step={step!r}",
+        argv = ["tune", "--controller", s.controller, "--plant", s.plant,
+                f"--step={ref.amplitude!r}",
                 f"--duration={s.duration!r}", f"--ts={s.ts!r}", f"--start={s.start!r}",
                 f"--delay={s.delay!r}", "--objective", str(self.w_objective.value),
                 "--maxiter", str(self.w_maxiter.value), "--restarts",
@@ -875,6 +876,8 @@ class ServoPage:
             setup = _setup(args, params, systems)
             tuned = tune_controller(setup, params, progress=progress, systems=systems)
         except Exception as exc:
+            from ..cli import _chain
+
             stopped = any(isinstance(e, Stopped) for e in _chain(exc))
             self._later(self._tune_done, None, None if stopped else exc,
                         time.monotonic() - started)
@@ -1048,12 +1051,3 @@ class ServoPage:
     def _tab_changed(self, event: Any) -> None:
         if event.new == 2:
             self._refresh_systems_tab()
-
-
-def _chain(exc: BaseException) -> list[BaseException]:
-    out: list[BaseException] = []
-    cur: BaseException | None = exc
-    while cur is not None and cur not in out:
-        out.append(cur)
-        cur = cur.__cause__ or cur.__context__
-    return out

@@ -40,14 +40,11 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo app``."""
-    from .. import paper
-
     if not 1 <= args.port <= 65535:
         raise ParameterError(f"--port must be in 1..65535, got {args.port}")
     if args.param_set not in SET_NAMES:
         raise ParameterError(f"--set {args.param_set!r}: unknown parameter set; allowed: "
                              f"{', '.join(SET_NAMES)}")
-    paper.named_set(args.param_set)
     if ":" in args.host:
         raise ParameterError(f"--host {args.host}: an IPv6 address cannot be served (Bokeh's "
                              f"server checks the page's origin by host:port); give an IPv4 "
