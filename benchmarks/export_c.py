@@ -8,7 +8,7 @@ fed to:
 1. the generated C step (``fuzzyservo export c``), compiled with ``gcc -O2``, timed inside C
    over many passes (``clock_gettime``), double and float;
 2. the Python per-step API, ``controller.step(state, r, y)``, one call per sample;
-3. the compiled kernel's controller step (``fuzzyservo.control.controller_step``, the function
+3. the compiled kernel's controller step (the law's ``step``, the function
    the batch simulators call), in a numba loop over the same samples.
 
 The table gives ns per sample (best of repeats: the machine is shared) and the ratios
@@ -26,10 +26,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numba
 import numpy as np
 
-from fuzzyservo.control import controller_step
+from fuzzyservo._jit import data_pointer, template
 from fuzzyservo.export.targets import generate_c
 from fuzzyservo.files import read_gains_file
 from fuzzyservo.formats import read_system
@@ -96,14 +95,21 @@ int main(int argc, char **argv)
 """
 
 
-@numba.njit(cache=True)
-def _kernel_loop(kind: int, p: Any, s0: Any, r: Any, y: Any, a: Any, b: Any, c: Any,
-                 d: Any, passes: int) -> float:
+LAW_STEP: Any = None
+LAW_PREPARE: Any = None
+
+
+@template(error_model="numpy")
+def _kernel_loop(p: Any, s0: Any, r: Any, y: Any, tables: Any, passes: int) -> float:
+    """The law's compiled step over (r, y), ``passes`` times (specialised per law)."""
+    aux = LAW_PREPARE(tables)
     sink = 0.0
     for _ in range(passes):
         s = s0.copy()
+        pp = data_pointer(p)
+        sp = data_pointer(s)
         for i in range(r.shape[0]):
-            sink += controller_step(kind, p, s, r[i], y[i], a, b, c, d)
+            sink += LAW_STEP(pp, sp, r[i], y[i], aux)
     return sink
 
 
@@ -158,10 +164,11 @@ def _case(label: str, kind: str, gains: dict[str, float], systems: Any, tmp: Pat
     # compiled kernel step
     tables = ctl.tables()
     p = ctl.pack()
-    _kernel_loop(ctl.kind, p, state0, res.r, res.y, *tables, 1)
+    loop = ctl.law.kernels("benchmarks-export-c", [_kernel_loop])._kernel_loop
+    loop(p, state0, res.r, res.y, tables, 1)
     passes = 20
-    row["kernel"] = _best(lambda: _kernel_loop(ctl.kind, p, state0, res.r, res.y, *tables,
-                                               passes), repeats) / (passes * n)
+    row["kernel"] = _best(lambda: loop(p, state0, res.r, res.y, tables, passes),
+                          repeats) / (passes * n)
     return row
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "fuzzyservo"
 
-# subpackage -> internal subpackages it may import (errors/_typing/_io are always allowed)
+# subpackage -> internal subpackages it may import (errors/_typing/_io/_jit always allowed)
 ALLOWED: dict[str, set[str]] = {
     "fuzzy": set(),
     "plant": set(),
@@ -28,7 +28,8 @@ ALLOWED: dict[str, set[str]] = {
     "app": {"fuzzyservo", "fuzzy", "formats", "plant", "control", "sim", "paper", "registry",
             "analysis", "files", "plots", "export", "commands", "cli"},
 }
-ALWAYS = {"errors", "_typing", "_io", "__version__"}
+# _jit: the compiled core's decorator, cache and notice (numba only), free for every layer
+ALWAYS = {"errors", "_typing", "_io", "_jit", "__version__"}
 
 
 def _internal_targets(path: Path) -> set[str]:

@@ -167,6 +167,7 @@ def test_the_fmu_is_the_same_zip_for_the_same_export(tmp_path: Path) -> None:
 
 
 def test_a_controller_without_c_code_is_refused_by_name() -> None:
-    # the open loop's pass-through "controller" is not a registered kind and has no C code
-    with pytest.raises(ParameterError, match="has no C code; the exporter expresses"):
+    # the open loop's pass-through "controller" is not a registered kind and has no C port
+    with pytest.raises(ParameterError, match="has no C port: its law command declares no "
+                                             "c_source"):
         emit_controller(controller_kind("p"), {"kp": 1.0}, CommandSchedule(dt=1e-3), name="x")

@@ -294,7 +294,7 @@ def test_the_cases_cover_the_splits(built: Built) -> None:
     half = CASES[-7]
     assert built.servo[half.cid].n_split == (2, 3)  # round(2.5) = 2, as Python rounds
     assert substep_split(5, 2.0**-10, 2.0**-9) == (2, 3)
-    assert substep_split(1, 0.5e-3, 1e-3) == (1, 1)  # run_nonlinear's floor of one step each
+    assert substep_split(1, 0.5e-3, 1e-3) == (1, 1)  # nonlinear_one's floor of one step each
     assert substep_split(10, 0.99e-3, 1e-3) == (9, 1)
 
 

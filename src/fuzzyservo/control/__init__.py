@@ -1,19 +1,24 @@
-"""Discrete-time controllers with explicit state: PID family, fuzzy PI, self-tuning fuzzy PI."""
+"""Discrete-time controllers with explicit state: PID family, fuzzy PI, self-tuning fuzzy PI.
+
+Each controller's maths is a :class:`Law` declared once in its module (``pid.py``,
+``fuzzy_pi.py``), with its C port beside it (``pid.c``, ``fuzzy_pi.c``).
+"""
 
 from __future__ import annotations
 
-from .base import (
-    KIND_FUZZY_PI,
-    KIND_PID,
-    STATE_ALPHA,
-    STATE_SIZE,
-    Controller,
-    PackedController,
-    controller_step,
+from .._jit import kernel
+from .base import Controller, PackedController
+from .fuzzy_pi import (
+    FUZZY_GAIN_NAMES,
+    FUZZY_PI_GENERAL_LAW,
+    FUZZY_PI_LAW,
+    FuzzyPIController,
+    FuzzyPIState,
 )
-from .fuzzy_pi import FUZZY_GAIN_NAMES, FuzzyPIController, FuzzyPIState, fuzzy_pi_step
+from .law import Field, Law, LawController, indices
 from .pid import (
     PID_GAIN_NAMES,
+    PID_LAW,
     PIDController,
     PIDState,
     p_controller,
@@ -24,20 +29,22 @@ from .self_tuning import SelfTuningFuzzyPIController
 
 __all__ = [
     "FUZZY_GAIN_NAMES",
-    "KIND_FUZZY_PI",
-    "KIND_PID",
+    "FUZZY_PI_GENERAL_LAW",
+    "FUZZY_PI_LAW",
     "PID_GAIN_NAMES",
-    "STATE_ALPHA",
-    "STATE_SIZE",
+    "PID_LAW",
     "Controller",
+    "Field",
     "FuzzyPIController",
     "FuzzyPIState",
+    "Law",
+    "LawController",
     "PIDController",
     "PIDState",
     "PackedController",
     "SelfTuningFuzzyPIController",
-    "controller_step",
-    "fuzzy_pi_step",
+    "indices",
+    "kernel",
     "p_controller",
     "pi_controller",
     "pid_step",

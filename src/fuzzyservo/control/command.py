@@ -1,8 +1,8 @@
 """The open loop as a controller: the command schedule passes through, the measurement is unused.
 
 An open-loop run is a closed loop whose "controller" issues a given command sequence: the
-simulator feeds the schedule in place of the reference, and :func:`controller_step` returns it
-(kind ``KIND_COMMAND``). So the open loop uses the very loops, hold, delay handling and plant
+simulator feeds the schedule in place of the reference, and the step of :data:`COMMAND_LAW`
+returns it. So the open loop uses the very loops, hold, delay handling and plant
 functions of the closed loop (:func:`fuzzyservo.sim.simulate_open_loop`). Not a controller a
 user names: it is not in the registry.
 """
@@ -11,15 +11,41 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
-from .._typing import FloatArray, IntArray
+from .._jit import kernel
+from .._typing import FloatArray
 from ..errors import ParameterError
-from .pid import no_tables
+from .law import Law, LawController
 
-__all__ = ["CommandSchedule", "CommandState"]
+__all__ = ["COMMAND_LAW", "CommandSchedule", "CommandState"]
+
+
+@kernel(inline=True)
+def _pass_through(p: Any, s: Any, r: float, y: float, aux: Any) -> float:
+    """The command is the schedule sample given as the reference."""
+    return r
+
+
+@kernel(inline=True)
+def _no_aux(tables: Any) -> float:
+    return 0.0
+
+
+def _pack(g: FloatArray, k: FloatArray) -> FloatArray:
+    return np.zeros((g.shape[0], 0))
+
+
+def _rest(packed: FloatArray, y0: float, u0: float) -> FloatArray:
+    return np.zeros((packed.shape[0], 0))
+
+
+#: The open loop's "law": the command passes through; no parameters, no state.
+COMMAND_LAW = Law(name="command", title="the open loop (a command schedule)", params=(),
+                  state=(), gains=(), constants=(), step=_pass_through, prepare=_no_aux,
+                  pack=_pack, rest=_rest)
 
 
 @dataclass(frozen=True, slots=True)
@@ -28,7 +54,7 @@ class CommandState:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class CommandSchedule:
+class CommandSchedule(LawController):
     """Pass-through "controller": the command is the schedule sample given as the reference.
 
     Parameters
@@ -39,7 +65,8 @@ class CommandSchedule:
 
     dt: float  #: sample period [s]
 
-    kind: ClassVar[int] = 2
+    law: ClassVar[Law] = COMMAND_LAW
+    state_class: ClassVar[type] = CommandState
     gain_names: ClassVar[tuple[str, ...]] = ()
 
     def __post_init__(self) -> None:
@@ -50,30 +77,11 @@ class CommandSchedule:
         """The (empty) state."""
         return CommandState()
 
-    def step(self, state: CommandState, reference: float, measurement: float
-             ) -> tuple[float, CommandState]:
+    def law_constants(self) -> FloatArray:
+        """None."""
+        return np.zeros(0)
+
+    def step(self, state: Any, reference: float, measurement: float) -> tuple[float, Any]:
         """The command is the schedule sample ``reference`` [-]; ``measurement`` is unused."""
         del measurement
         return float(reference), state
-
-    def pack(self) -> FloatArray:
-        """Packed parameters (none; one placeholder entry)."""
-        return np.zeros(1)
-
-    def pack_gains(self, gains: FloatArray) -> FloatArray:
-        """One placeholder row per row of ``gains`` (there are no gains)."""
-        return np.zeros((np.atleast_2d(gains).shape[0], 1))
-
-    def pack_state(self, state: object) -> FloatArray:
-        """Packed state (placeholders; alpha NaN)."""
-        return np.array([0.0, 0.0, 0.0, 0.0, np.nan])
-
-    def rest_states(self, packed: FloatArray, y0: float, u0: float) -> FloatArray:
-        """Packed states, one per row of ``packed``."""
-        out = np.zeros((packed.shape[0], 5))
-        out[:, 4] = np.nan
-        return out
-
-    def tables(self) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
-        """Placeholder rule tables."""
-        return no_tables()

@@ -21,48 +21,81 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar, Literal, Protocol, Self
 
-import numba
 import numpy as np
 from numba.np.numpy_support import carray
 
+from .._jit import data_pointer, kernel, specialize, template
 from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
 from ..fuzzy.general import MAGIC, eval_first2
-from ..fuzzy.kernels import GridTable, data_pointer, grid_eval, grid_pair, grid_table
+from ..fuzzy.kernels import GridTable, grid_eval, grid_pair, grid_table
+from .law import Field, Law, LawController, indices
 
 __all__ = [
     "FUZZY_GAIN_NAMES",
+    "FUZZY_PI_GENERAL_LAW",
+    "FUZZY_PI_LAW",
     "FuzzyPIController",
     "FuzzyPIState",
     "KernelSystem",
     "SystemTable",
     "eval_system",
-    "fuzzy_pi_step",
-    "fuzzy_pi_step_arrays",
     "system_table",
 ]
 
+#: The law's packed parameters (:data:`FUZZY_PI_LAW`).
+PARAMS = (
+    Field("ke", "1/m", "error scaling K_e"),
+    Field("kde", "1/m", "error-change scaling K_Δe (per sample, or s/m per second)"),
+    Field("kdu", "-", "output scaling K_Δu"),
+    Field("u_min", "-", "lower command limit"),
+    Field("u_max", "-", "upper command limit"),
+    Field("de_scale", "1/s", "factor of the error difference: 1 (per sample) or 1/h"),
+    Field("e_init", "-", "e(-1) rule: 0 zero, 1 the first error"),
+    Field("filter_a", "-", "measurement filter coefficient exp(-h/T_f), 0 without filter"),
+    Field("self_tuning", "-", "1: the output gain is scaled by α (eq. 11), 0: α = 1"),
+)
+#: The law's packed state.
+STATE = (
+    Field("u_prev", "-", "previous command u(k-1)"),
+    Field("e_prev", "m", "previous error e(k-1)"),
+    Field("y_filtered", "m", "filtered measurement y_f(k-1)"),
+    Field("started", "-", "1 once the first sample has set e(-1) and y_f"),
+    Field("alpha", "-", "gain-updating factor α of the last sample"),
+)
 #: Gains a batch may vary for the fuzzy controllers, in column order.
-FUZZY_GAIN_NAMES: tuple[str, ...] = ("ke", "kde", "kdu")
+GAINS = (
+    Field("ke", "1/m", "error scaling K_e"),
+    Field("kde", "1/m", "error-change scaling K_Δe"),
+    Field("kdu", "-", "output scaling K_Δu"),
+)
+#: What the packing takes besides the gains.
+CONSTANTS = (
+    Field("u_min", "-", "lower command limit"),
+    Field("u_max", "-", "upper command limit"),
+    Field("de_scale", "1/s", "factor of the error difference: 1 (per sample) or 1/h"),
+    Field("e_init", "-", "e(-1) rule: 0 zero, 1 the first error"),
+    Field("filter_a", "-", "measurement filter coefficient exp(-h/T_f), 0 without filter"),
+    Field("self_tuning", "-", "1: self-tuning (α from the α system), 0: α = 1"),
+)
+FUZZY_GAIN_NAMES: tuple[str, ...] = tuple(f.name for f in GAINS)
 
-# packed parameter layout
-_KE, _KDE, _KDU, _UMIN, _UMAX, _DESCALE, _EINIT, _FILT, _ST = range(9)
-_NP = 9
-# packed state layout
-_UPREV, _EPREV, _YF, _STARTED, _ALPHA = range(5)
+P = indices("FuzzyPIParams", PARAMS)
+S = indices("FuzzyPIStateIndex", STATE)
 
-#: A fuzzy system as the inlined step takes it (:func:`system_table`).
+#: A fuzzy system as the general variant's step takes it (:func:`system_table`).
 SystemTable = tuple[int, GridTable, Any, int, Any, int]
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def system_table(rules: IntArray, lims: FloatArray) -> SystemTable:
-    """A fuzzy system in kernel form as one value the inlined step takes (the arrays must
-    outlive it): ``(general, grid table, packed integers, their count, packed floats, their
-    count)``; ``general`` is 1 for a packed system (rules (1, N), C-contiguous, as
-    ``_tables`` makes them), whose grid table is a placeholder, else 0."""
+    """A fuzzy system in kernel form as one value the step takes (the arrays must outlive
+    it): ``(general, grid table, packed integers, their count, packed floats, their count)``;
+    ``general`` is 1 for a packed system (rules (1, N), C-contiguous, as ``_tables`` makes
+    them), whose grid table is a placeholder, else 0."""
     rp = data_pointer(rules)
     lp = data_pointer(lims)
     if rules.shape[0] == 1:
@@ -71,64 +104,125 @@ def system_table(rules: IntArray, lims: FloatArray) -> SystemTable:
     return (0, grid_table(rules, lims), rp, 0, lp, 0)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(error_model="numpy")
 def eval_system(x1: float, x2: float, tab: SystemTable) -> float:
-    """A fuzzy system (:func:`system_table`) at (x1, x2): the uniform-grid fast path for a
-    rule table, the general evaluator for a packed system (:meth:`fuzzyservo.fuzzy.general.
+    """A fuzzy system (:func:`system_table`) at (x1, x2): the uniform-grid path for a rule
+    table, the general evaluator for a packed system (:meth:`fuzzyservo.fuzzy.general.
     CompiledSystem.kernel_args`)."""
     if tab[0] == 1:
         return eval_first2(x1, x2, carray(tab[2], tab[3]), carray(tab[4], tab[5]))
     return grid_eval(x1, x2, tab[1])
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def fuzzy_pi_step(p: FloatArray, s: FloatArray, r: float, y: float, du: SystemTable,
-                  alpha: SystemTable) -> float:
-    """One fuzzy PI sample on packed ``p`` and state ``s`` (updated in place); returns u.
+# --- the two ways of evaluating the systems (one call site per system per sample) ----------
 
-    ``p`` and ``s`` are arrays or their :func:`~fuzzyservo.fuzzy.kernels.data_pointer`
-    (the compiled loops pass pointers: no reference counting in the inlined step); ``du``
-    and ``alpha`` are :func:`system_table` values. With ``p[8] == 1`` the output gain is
-    scaled by α from the ``alpha`` system (self-tuning, eq. 11), otherwise α = 1.
-    """
-    if s[_STARTED] == 0.0:
+
+@kernel(inline=True)
+def _grid_prepare(tables: Any) -> tuple[GridTable, GridTable]:
+    return grid_table(tables[0], tables[1]), grid_table(tables[2], tables[3])
+
+
+@kernel(inline=True, error_model="numpy")
+def _grid_systems(en: float, den: float, aux: Any, self_tuning: bool) -> tuple[float, float]:
+    """Δu_n and α of rule tables on uniform grids: the pair located once when self-tuning."""
+    if self_tuning:
+        return grid_pair(en, den, aux[0], aux[1])
+    return grid_eval(en, den, aux[0]), 1.0
+
+
+@kernel(inline=True)
+def _general_prepare(tables: Any) -> tuple[SystemTable, SystemTable]:
+    return system_table(tables[0], tables[1]), system_table(tables[2], tables[3])
+
+
+@kernel(inline=True, error_model="numpy")
+def _general_systems(en: float, den: float, aux: Any, self_tuning: bool
+                     ) -> tuple[float, float]:
+    """Δu_n and α when either system is a packed general system (e.g. read from a file)."""
+    dun = eval_system(en, den, aux[0])
+    if self_tuning:
+        return dun, eval_system(en, den, aux[1])
+    return dun, 1.0
+
+
+SYSTEMS: Any = None
+
+
+@template(inline=True, error_model="numpy")
+def fuzzy_pi_step(p: Any, s: Any, r: float, y: float, aux: Any) -> float:
+    """One fuzzy PI sample on packed ``p`` and state ``s`` (data pointers or arrays; ``s``
+    updated in place); returns u. ``aux`` holds the Δu and α systems; with ``self_tuning``
+    the output gain is scaled by α (eq. 11), otherwise α = 1. Written once, compiled for the
+    uniform-grid systems (the paper's) and for general ones (``SYSTEMS``)."""
+    if s[S.started] == 0.0:
         yf = y
         e = r - yf
-        e_prev = e if p[_EINIT] == 1.0 else 0.0
-        s[_STARTED] = 1.0
+        e_prev = e if p[P.e_init] == 1.0 else 0.0
+        s[S.started] = 1.0
     else:
-        a = p[_FILT]
-        yf = a * s[_YF] + (1.0 - a) * y
+        a = p[P.filter_a]
+        yf = a * s[S.y_filtered] + (1.0 - a) * y
         e = r - yf
-        e_prev = s[_EPREV]
-    de = (e - e_prev) * p[_DESCALE]
-    en = p[_KE] * e
-    den = p[_KDE] * de
-    if p[_ST] == 1.0:
-        if du[0] == 1 or alpha[0] == 1:
-            dun = eval_system(en, den, du)
-            alpha_f = eval_system(en, den, alpha)
-        else:
-            dun, alpha_f = grid_pair(en, den, du[1], alpha[1])
-    else:
-        dun = eval_system(en, den, du)
-        alpha_f = 1.0
-    u = s[_UPREV] + alpha_f * p[_KDU] * dun
-    u = min(max(u, p[_UMIN]), p[_UMAX])
-    s[_UPREV] = u
-    s[_EPREV] = e
-    s[_YF] = yf
-    s[_ALPHA] = alpha_f
+        e_prev = s[S.e_prev]
+    de = (e - e_prev) * p[P.de_scale]
+    en = p[P.ke] * e
+    den = p[P.kde] * de
+    dun, alpha_f = SYSTEMS(en, den, aux, p[P.self_tuning] == 1.0)
+    u = s[S.u_prev] + alpha_f * p[P.kdu] * dun
+    u = min(max(u, p[P.u_min]), p[P.u_max])
+    s[S.u_prev] = u
+    s[S.e_prev] = e
+    s[S.y_filtered] = yf
+    s[S.alpha] = alpha_f
     return u
 
 
-@numba.njit(cache=True, nogil=True)
-def fuzzy_pi_step_arrays(p: FloatArray, s: FloatArray, r: float, y: float,
-                         du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray,
-                         a_lims: FloatArray) -> float:
-    """:func:`fuzzy_pi_step` on the controller's arrays (the per-step API's call)."""
-    return fuzzy_pi_step(data_pointer(p), data_pointer(s), r, y,
-                         system_table(du_rules, du_lims), system_table(a_rules, a_lims))
+_GRID_STEP = specialize([fuzzy_pi_step], {"SYSTEMS": _grid_systems}, key="grid",
+                        title="the fuzzy PI").fuzzy_pi_step
+_GENERAL_STEP = specialize([fuzzy_pi_step], {"SYSTEMS": _general_systems}, key="general",
+                           title="the fuzzy PI").fuzzy_pi_step
+
+
+def _pack(g: FloatArray, k: FloatArray) -> FloatArray:
+    """Packed rows from gain rows (ke, kde, kdu) and the constants (u_min, u_max, Δe scale,
+    e(-1) rule, filter coefficient, self-tuning), which are already in packed form."""
+    out = np.empty((g.shape[0], len(PARAMS)))
+    out[:, P.ke] = g[:, 0]
+    out[:, P.kde] = g[:, 1]
+    out[:, P.kdu] = g[:, 2]
+    out[:, P.u_min] = k[0]
+    out[:, P.u_max] = k[1]
+    out[:, P.de_scale] = k[2]
+    out[:, P.e_init] = k[3]
+    out[:, P.filter_a] = k[4]
+    out[:, P.self_tuning] = k[5]
+    return out
+
+
+def _rest(packed: FloatArray, y0: float, u0: float) -> FloatArray:
+    """States before the first sample, holding the command u0 [-] (y0 [m] is not needed:
+    the first sample sets e(-1) and y_f)."""
+    out = np.zeros((packed.shape[0], len(STATE)))
+    out[:, S.u_prev] = u0
+    out[:, S.alpha] = 1.0
+    return out
+
+
+_C_PORT = Path(__file__).with_name("fuzzy_pi.c")
+
+#: The fuzzy PI law (with and without self-tuning) for fuzzy systems on uniform grids (the
+#: paper's): its layout, step, packing and C port (``fuzzy_pi.c``).
+FUZZY_PI_LAW = Law(name="fuzzy_pi", title="the fuzzy PI", params=PARAMS, state=STATE,
+                   gains=GAINS, constants=CONSTANTS, step=_GRID_STEP, prepare=_grid_prepare,
+                   pack=_pack, rest=_rest, trace="alpha", c_source=_C_PORT,
+                   systems=("du", "alpha"))
+#: The same law, compiled for general fuzzy systems (read from files): the same layout,
+#: packing and C port, the systems evaluated by the general exact evaluator.
+FUZZY_PI_GENERAL_LAW = Law(name="fuzzy_pi_general", title="the fuzzy PI (general systems)",
+                           params=PARAMS, state=STATE, gains=GAINS, constants=CONSTANTS,
+                           step=_GENERAL_STEP, prepare=_general_prepare, pack=_pack,
+                           rest=_rest, trace="alpha", c_source=_C_PORT,
+                           systems=("du", "alpha"))
 
 
 class KernelSystem(Protocol):
@@ -179,7 +273,7 @@ def _empty_lims() -> FloatArray:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
-class FuzzyPIController:
+class FuzzyPIController(LawController):
     """Incremental fuzzy PI (paper Fig. 7: the self-tuning controller with α_F ≡ 1).
 
     Parameters
@@ -220,7 +314,7 @@ class FuzzyPIController:
     de_per: Literal["sample", "second"] = "sample"  #: Δe per sample or per second
     filter_time: float = 0.0  #: measurement filter time constant [s]
 
-    kind: ClassVar[int] = 1
+    state_class: ClassVar[type] = FuzzyPIState
     gain_names: ClassVar[tuple[str, ...]] = FUZZY_GAIN_NAMES
     self_tuning: ClassVar[bool] = False
 
@@ -271,59 +365,28 @@ class FuzzyPIController:
         """State before the first sample, holding the command ``u0`` [-] (bumpless start)."""
         return FuzzyPIState(u_prev=u0, e_prev=0.0, y_filtered=0.0, started=False, alpha=1.0)
 
-    def pack(self) -> FloatArray:
-        """Packed parameter vector for :func:`fuzzy_pi_step`."""
-        return self.pack_gains(np.array([[self.ke, self.kde, self.kdu]]))[0]
+    @property
+    def law(self) -> Law:  # type: ignore[override]
+        """The law compiled for this controller's systems: :data:`FUZZY_PI_LAW` for rule
+        tables on uniform grids, :data:`FUZZY_PI_GENERAL_LAW` when a system it uses is a
+        packed general one."""
+        general = self.du_rules.shape[0] == 1 or (self.self_tuning
+                                                  and self.alpha_rules.shape[0] == 1)
+        return FUZZY_PI_GENERAL_LAW if general else FUZZY_PI_LAW
 
-    def pack_gains(self, gains: FloatArray) -> FloatArray:
-        """Pack one parameter row per row of ``gains`` (columns ``ke, kde, kdu``)."""
-        g = np.asarray(gains, dtype=np.float64)
-        if g.ndim != 2 or g.shape[1] != len(FUZZY_GAIN_NAMES):
-            raise ParameterError(
-                f"fuzzy gains need shape (runs, 3) with columns ke, kde, kdu, got {g.shape}")
-        bad = ~(np.isfinite(g) & (g >= 0.0))
-        if np.any(bad):
-            i, j = np.argwhere(bad)[0]
-            raise ParameterError(
-                f"gain {FUZZY_GAIN_NAMES[j]} must be finite and >= 0, got {g[i, j]!r}")
-        out = np.empty((g.shape[0], _NP))
-        out[:, _KE] = g[:, 0]
-        out[:, _KDE] = g[:, 1]
-        out[:, _KDU] = g[:, 2]
-        out[:, _UMIN] = self.u_min
-        out[:, _UMAX] = self.u_max
-        out[:, _DESCALE] = 1.0 if self.de_per == "sample" else 1.0 / self.dt
-        out[:, _EINIT] = 1.0 if self.initial_error == "first" else 0.0
-        out[:, _FILT] = math.exp(-self.dt / self.filter_time) if self.filter_time > 0 else 0.0
-        out[:, _ST] = 1.0 if self.self_tuning else 0.0
+    def law_constants(self) -> FloatArray:
+        """The packing constants: u_min, u_max, Δe scale (1 or 1/h), e(-1) rule, filter
+        coefficient exp(-h/T_f) (0 without filter), self-tuning."""
+        return np.array([
+            self.u_min, self.u_max, 1.0 if self.de_per == "sample" else 1.0 / self.dt,
+            1.0 if self.initial_error == "first" else 0.0,
+            math.exp(-self.dt / self.filter_time) if self.filter_time > 0 else 0.0,
+            1.0 if self.self_tuning else 0.0])
+
+    def systems(self) -> dict[str, tuple[IntArray, FloatArray]]:
+        """The fuzzy systems the law evaluates, by role, in kernel form (the C export writes
+        these): ``du``, and ``alpha`` when self-tuning."""
+        out = {"du": (self.du_rules, self.du_lims)}
+        if self.self_tuning:
+            out["alpha"] = (self.alpha_rules, self.alpha_lims)
         return out
-
-    def rest_states(self, packed: FloatArray, y0: float, u0: float) -> FloatArray:
-        """Packed states before the first sample, one per packed parameter row, holding the
-        command ``u0`` [-] (``y0`` [m] is not needed: the first sample sets e(-1), y_f)."""
-        out = np.zeros((packed.shape[0], 5))
-        out[:, _UPREV] = u0
-        out[:, _ALPHA] = 1.0
-        return out
-
-    def pack_state(self, state: object) -> FloatArray:
-        """Packed state vector (u_prev, e_prev, y_filtered, started, alpha)."""
-        if not isinstance(state, FuzzyPIState):
-            raise ParameterError(f"expected a FuzzyPIState, got {type(state).__name__}")
-        return np.array([state.u_prev, state.e_prev, state.y_filtered,
-                         1.0 if state.started else 0.0, state.alpha])
-
-    def unpack_state(self, s: FloatArray) -> FuzzyPIState:
-        """Inverse of :meth:`pack_state`."""
-        return FuzzyPIState(u_prev=float(s[_UPREV]), e_prev=float(s[_EPREV]),
-                            y_filtered=float(s[_YF]), started=bool(s[_STARTED] != 0.0),
-                            alpha=float(s[_ALPHA]))
-
-    def step(self, state: FuzzyPIState, reference: float, measurement: float
-             ) -> tuple[float, FuzzyPIState]:
-        """One sample: command u [-] from reference and measurement [m], and the new state."""
-        s = self.pack_state(state)
-        u = fuzzy_pi_step_arrays(self.pack(), s, float(reference), float(measurement),
-                                 self.du_rules, self.du_lims, self.alpha_rules,
-                                 self.alpha_lims)
-        return float(u), self.unpack_state(s)

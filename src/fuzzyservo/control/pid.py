@@ -28,16 +28,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from pathlib import Path
+from typing import Any, ClassVar, Literal
 
-import numba
 import numpy as np
 
-from .._typing import FloatArray, IntArray
+from .._jit import kernel
+from .._typing import FloatArray
 from ..errors import ParameterError
+from .law import Field, Law, LawController, indices
 
 __all__ = [
     "PID_GAIN_NAMES",
+    "PID_LAW",
     "AntiWindup",
     "PIDController",
     "PIDState",
@@ -49,44 +52,116 @@ __all__ = [
 AntiWindup = Literal["clamping", "back-calculation", "none"]
 _AW_CODE: dict[str, int] = {"none": 0, "clamping": 1, "back-calculation": 2}
 
+#: The law's packed parameters (:data:`PID_LAW`).
+PARAMS = (
+    Field("kp", "1/m", "proportional gain K_p"),
+    Field("ki_h", "1/m", "integral gain times the sample time, K_i h"),
+    Field("a_d", "-", "derivative filter pole 1/(1 + N h) (0 without filter)"),
+    Field("b_d", "1/m", "derivative gain of the filtered difference K_d N/(1 + N h) (K_d/h "
+          "without filter)"),
+    Field("b", "-", "setpoint weight of the proportional path"),
+    Field("c", "-", "setpoint weight of the derivative path"),
+    Field("u_min", "-", "lower command limit"),
+    Field("u_max", "-", "upper command limit"),
+    Field("anti_windup", "-", "anti-windup scheme: 0 none, 1 clamping, 2 back-calculation"),
+    Field("kb_h", "-", "back-calculation gain h/T_t, at most 1"),
+)
+#: The law's packed state.
+STATE = (
+    Field("integral", "-", "integral term I_k"),
+    Field("derivative", "-", "filtered derivative term D_k"),
+    Field("ed_prev", "m", "previous derivative-path error c r - y"),
+)
 #: Gains a batch may vary for the PID family, in column order.
-PID_GAIN_NAMES: tuple[str, ...] = ("kp", "ki", "kd", "n", "b", "c")
+GAINS = (
+    Field("kp", "1/m", "proportional gain"),
+    Field("ki", "1/(m s)", "integral gain"),
+    Field("kd", "s/m", "derivative gain"),
+    Field("n", "1/s", "derivative filter coefficient (inf: none)"),
+    Field("b", "-", "setpoint weight, proportional path"),
+    Field("c", "-", "setpoint weight, derivative path"),
+)
+#: What the packing takes besides the gains.
+CONSTANTS = (
+    Field("ts", "s", "sample time h"),
+    Field("u_min", "-", "lower command limit"),
+    Field("u_max", "-", "upper command limit"),
+    Field("anti_windup", "-", "anti-windup scheme code (as in the parameters)"),
+    Field("tracking_time", "s", "back-calculation time constant T_t; 0: the default"),
+)
+PID_GAIN_NAMES: tuple[str, ...] = tuple(f.name for f in GAINS)
 
-# packed parameter layout
-_KP, _BI, _AD, _BD, _B, _C, _UMIN, _UMAX, _AW, _KBH = range(10)
-_NP = 10
-# packed state layout: integral, derivative, previous derivative-path error, (unused), alpha
-_I, _D, _EDP = 0, 1, 2
+P = indices("PIDParams", PARAMS)
+S = indices("PIDStateIndex", STATE)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def pid_step(p: FloatArray, s: FloatArray, r: float, y: float) -> float:
+@kernel(inline=True, error_model="numpy")
+def pid_step(p: Any, s: Any, r: float, y: float, aux: Any) -> float:
     """One PID sample on packed parameters ``p`` and state ``s`` (updated in place); returns u.
 
-    ``p`` and ``s`` are arrays or their data pointers (the compiled loops inline this step
-    with pointers: no reference counting per sample)."""
+    ``p`` and ``s`` are data pointers or arrays; ``aux`` is unused (no tables)."""
     e = r - y
-    ed = p[_C] * r - y
-    d = p[_AD] * s[_D] + p[_BD] * (ed - s[_EDP])
-    i_new = s[_I] + p[_BI] * e
-    v = p[_KP] * (p[_B] * r - y) + i_new + d
-    u = min(max(v, p[_UMIN]), p[_UMAX])
-    aw = p[_AW]
+    ed = p[P.c] * r - y
+    d = p[P.a_d] * s[S.derivative] + p[P.b_d] * (ed - s[S.ed_prev])
+    i_new = s[S.integral] + p[P.ki_h] * e
+    v = p[P.kp] * (p[P.b] * r - y) + i_new + d
+    u = min(max(v, p[P.u_min]), p[P.u_max])
+    aw = p[P.anti_windup]
     if aw == 1.0:
-        if (v > p[_UMAX] and e > 0.0) or (v < p[_UMIN] and e < 0.0):
-            i_new = s[_I]
+        if (v > p[P.u_max] and e > 0.0) or (v < p[P.u_min] and e < 0.0):
+            i_new = s[S.integral]
     elif aw == 2.0:
-        i_new += p[_KBH] * (u - v)
-    s[_I] = i_new
-    s[_D] = d
-    s[_EDP] = ed
+        i_new += p[P.kb_h] * (u - v)
+    s[S.integral] = i_new
+    s[S.derivative] = d
+    s[S.ed_prev] = ed
     return u
 
 
-@numba.njit(cache=True, nogil=True)
-def pid_step_arrays(p: FloatArray, s: FloatArray, r: float, y: float) -> float:
-    """:func:`pid_step` on the controller's arrays (the per-step API's call)."""
-    return pid_step(p, s, r, y)
+@kernel(inline=True)
+def _no_aux(tables: Any) -> float:
+    """The PID family needs nothing of its (placeholder) tables."""
+    return 0.0
+
+
+def _pack(g: FloatArray, k: FloatArray) -> FloatArray:
+    """Packed rows from gain rows (kp, ki, kd, n, b, c) and the constants (ts, u_min, u_max,
+    anti-windup code, tracking time or 0)."""
+    kp, ki, kd, n, b, c = g.T
+    h = float(k[0])
+    out = np.empty((g.shape[0], len(PARAMS)))
+    out[:, P.kp] = kp
+    out[:, P.ki_h] = ki * h
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unfiltered = np.isinf(n)
+        out[:, P.a_d] = np.where(unfiltered, 0.0, 1.0 / (1.0 + n * h))
+        out[:, P.b_d] = np.where(unfiltered, kd / h, kd * n / (1.0 + n * h))
+        if k[4] > 0.0:
+            tt = np.full(g.shape[0], float(k[4]))
+        else:
+            tt = np.where(kd > 0.0, np.sqrt(kd / ki), kp / ki)
+        kbh = np.where((ki > 0.0) & (tt > 0.0), np.minimum(h / tt, 1.0), 0.0)
+    out[:, P.b] = b
+    out[:, P.c] = c
+    out[:, P.u_min] = k[1]
+    out[:, P.u_max] = k[2]
+    out[:, P.anti_windup] = k[3]
+    out[:, P.kb_h] = np.nan_to_num(kbh, nan=0.0)
+    return out
+
+
+def _rest(packed: FloatArray, y0: float, u0: float) -> FloatArray:
+    """Bumpless states: at rest with r = y = y0 [m] and command u0 [-]."""
+    out = np.zeros((packed.shape[0], len(STATE)))
+    out[:, S.integral] = u0 - packed[:, P.kp] * (packed[:, P.b] - 1.0) * y0
+    out[:, S.ed_prev] = (packed[:, P.c] - 1.0) * y0
+    return out
+
+
+#: The PID family's law: its layout, step, packing and C port (``pid.c``).
+PID_LAW = Law(name="pid", title="PID", params=PARAMS, state=STATE, gains=GAINS,
+              constants=CONSTANTS, step=pid_step, prepare=_no_aux, pack=_pack, rest=_rest,
+              c_source=Path(__file__).with_name("pid.c"))
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,7 +179,7 @@ def _check_gain(name: str, value: float) -> None:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class PIDController:
+class PIDController(LawController):
     """Two-degree-of-freedom PID in parallel form (see the module docstring for the law).
 
     Parameters
@@ -137,7 +212,8 @@ class PIDController:
     anti_windup: AntiWindup = "clamping"  #: anti-windup scheme
     tracking_time: float | None = None  #: back-calculation time constant [s]
 
-    kind: ClassVar[int] = 0
+    law: ClassVar[Law] = PID_LAW
+    state_class: ClassVar[type] = PIDState
     gain_names: ClassVar[tuple[str, ...]] = PID_GAIN_NAMES
 
     def __post_init__(self) -> None:
@@ -169,21 +245,16 @@ class PIDController:
         integral = u0 - self.kp * (self.b * r0 - y0) - self.ki * self.dt * (r0 - y0)
         return PIDState(integral=integral, derivative=0.0, ed_prev=self.c * r0 - y0)
 
-    def pack(self) -> FloatArray:
-        """Packed parameter vector for :func:`pid_step`."""
-        g = np.array([[self.kp, self.ki, self.kd, self.n, self.b, self.c]])
-        return self.pack_gains(g)[0]
+    def law_constants(self) -> FloatArray:
+        """The packing constants: ts, u_min, u_max, anti-windup code, tracking time (0:
+        the default)."""
+        tt = self.tracking_time if self.tracking_time is not None else 0.0
+        return np.array([self.dt, self.u_min, self.u_max, _AW_CODE[self.anti_windup], tt])
 
-    def pack_gains(self, gains: FloatArray) -> FloatArray:
-        """Pack one parameter row per row of ``gains`` (columns ``kp, ki, kd, n, b, c``),
-        with this controller's dt, limits and anti-windup."""
-        g = np.asarray(gains, dtype=np.float64)
-        if g.ndim != 2 or g.shape[1] != len(PID_GAIN_NAMES):
-            raise ParameterError(
-                f"PID gains need shape (runs, {len(PID_GAIN_NAMES)}) with columns "
-                f"{', '.join(PID_GAIN_NAMES)}, got {g.shape}")
+    def check_gain_rows(self, gains: FloatArray) -> None:
+        """Gains finite and >= 0; n > 0 (inf: no filter)."""
         for j, name in enumerate(PID_GAIN_NAMES):
-            col = g[:, j]
+            col = gains[:, j]
             bad = ~(col > 0.0) if name == "n" else ~(np.isfinite(col) & (col >= 0.0))
             if name == "n":
                 bad |= np.isnan(col)
@@ -191,64 +262,6 @@ class PIDController:
                 value = col[np.argmax(bad)]
                 allowed = "> 0 (inf: no filter)" if name == "n" else "finite and >= 0"
                 raise ParameterError(f"gain {name} must be {allowed}, got {value!r}")
-        kp, ki, kd, n, b, c = g.T
-        h = self.dt
-        out = np.empty((g.shape[0], _NP))
-        out[:, _KP] = kp
-        out[:, _BI] = ki * h
-        with np.errstate(invalid="ignore", divide="ignore"):
-            unfiltered = np.isinf(n)
-            out[:, _AD] = np.where(unfiltered, 0.0, 1.0 / (1.0 + n * h))
-            out[:, _BD] = np.where(unfiltered, kd / h, kd * n / (1.0 + n * h))
-            if self.tracking_time is not None:
-                tt = np.full(g.shape[0], self.tracking_time)
-            else:
-                tt = np.where(kd > 0.0, np.sqrt(kd / ki), kp / ki)
-            kbh = np.where((ki > 0.0) & (tt > 0.0), np.minimum(h / tt, 1.0), 0.0)
-        out[:, _B] = b
-        out[:, _C] = c
-        out[:, _UMIN] = self.u_min
-        out[:, _UMAX] = self.u_max
-        out[:, _AW] = _AW_CODE[self.anti_windup]
-        out[:, _KBH] = np.nan_to_num(kbh, nan=0.0)
-        return out
-
-    def rest_states(self, packed: FloatArray, y0: float, u0: float) -> FloatArray:
-        """Packed bumpless states, one per packed parameter row: at rest with r = y = ``y0``
-        [m] and command ``u0`` [-] (as :meth:`initial_state`)."""
-        out = np.zeros((packed.shape[0], 5))
-        out[:, _I] = u0 - packed[:, _KP] * (packed[:, _B] - 1.0) * y0
-        out[:, _EDP] = (packed[:, _C] - 1.0) * y0
-        out[:, 4] = np.nan
-        return out
-
-    def tables(self) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
-        """Placeholder rule tables (the PID family uses none; typed for the kernels)."""
-        return no_tables()
-
-    def pack_state(self, state: object) -> FloatArray:
-        """Packed state vector (integral, derivative, ed_prev, 0, alpha = NaN)."""
-        if not isinstance(state, PIDState):
-            raise ParameterError(f"expected a PIDState, got {type(state).__name__}")
-        return np.array([state.integral, state.derivative, state.ed_prev, 0.0, np.nan])
-
-    def unpack_state(self, s: FloatArray) -> PIDState:
-        """Inverse of :meth:`pack_state`."""
-        return PIDState(integral=float(s[_I]), derivative=float(s[_D]), ed_prev=float(s[_EDP]))
-
-    def step(self, state: PIDState, reference: float, measurement: float
-             ) -> tuple[float, PIDState]:
-        """One sample: command u [-] from reference and measurement [m], and the new state."""
-        s = self.pack_state(state)
-        u = pid_step_arrays(self.pack(), s, float(reference), float(measurement))
-        return float(u), self.unpack_state(s)
-
-
-def no_tables() -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
-    """Placeholder rule tables for controllers without fuzzy systems (typed for the kernels)."""
-    rules = np.full((2, 2), -1, dtype=np.int64)
-    lims = np.array([-1.0, 1.0, -1.0, 1.0, 0.0, 1.0, 2.0, 0.0])
-    return rules, lims, rules.copy(), lims.copy()
 
 
 def p_controller(*, dt: float, kp: float, u_min: float = -1.0, u_max: float = 1.0

@@ -1,12 +1,15 @@
 """C99 code of a registered controller: one header and one source, no heap, no globals.
 
-The generated step is a line-by-line port of the one Python implementation of each law
-(:func:`fuzzyservo.control.pid.pid_step`, :func:`fuzzyservo.control.fuzzy_pi.fuzzy_pi_step`),
-with the fuzzy systems evaluated by the C port of the exact evaluators
-(:mod:`fuzzyservo.export.fuzzy_c`). The packed parameter vector the Python packs
+The generated step is the law's C port (:attr:`fuzzyservo.control.law.Law.c_source`, a file
+beside the law's module: ``control/pid.c``, ``control/fuzzy_pi.c``, a line-by-line port of the
+one Python implementation), pasted after the law's layout written from its declaration
+(``FS_P_<NAME>``, ``FS_S_<NAME>``, ``FS_G_<NAME>``, ``FS_K_<NAME>``: the port indexes by these
+names only), with the controller's fuzzy systems evaluated by the C port of the exact
+evaluators (:mod:`fuzzyservo.export.fuzzy_c`). The packed parameter vector the Python packs
 (``controller.pack()``) is compiled in, written as C99 hexadecimal literals, so the C starts
-from the very same bits; ``NAME_set_gains`` re-packs new gains in C (in double, as numpy does)
-for a target or an FMU that tunes them. docs/export.md gives the API and the guarantees.
+from the very same bits; ``NAME_set_gains`` re-packs new gains in C (``fs_law_pack``, in double
+as numpy does) for a target or an FMU that tunes them. docs/export.md gives the API and the
+guarantees.
 """
 
 from __future__ import annotations
@@ -15,13 +18,13 @@ import hashlib
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .. import __version__
 from .._typing import FloatArray
-from ..control import KIND_FUZZY_PI, KIND_PID
 from ..errors import ParameterError
 from ..registry import ControllerKind
 from ._c import Real, c_array, c_comment, c_literal
@@ -115,131 +118,52 @@ def _array(name: str, values: FloatArray, real: Real) -> str:
                                      for i, v in enumerate(values)])
 
 
-# --- PID family ---------------------------------------------------------------------------
-
-_PID_STEP = """\
-/* One PID sample on packed parameters p and state s (updated in place): the Python
- * fuzzyservo.control.pid.pid_step line by line. p: kp, ki h, a_d, b_d, b, c, u_min, u_max,
- * anti-windup (0 none, 1 clamping, 2 back-calculation), h/T_t; s: I, D, ed_prev, 0, alpha. */
-static fs_real fs_pid_step(const fs_real *p, fs_real *s, fs_real r, fs_real y)
-{
-    fs_real e = r - y;
-    fs_real ed = p[5] * r - y;
-    fs_real d = p[2] * s[1] + p[3] * (ed - s[2]);
-    fs_real i_new = s[0] + p[1] * e;
-    fs_real v = p[0] * (p[4] * r - y) + i_new + d;
-    fs_real u = v;
-    if (u < p[6]) {
-        u = p[6];
-    }
-    if (p[7] < u) {
-        u = p[7];
-    }
-    if (p[8] == 1) {
-        if ((v > p[7] && e > 0) || (v < p[6] && e < 0)) {
-            i_new = s[0];
-        }
-    } else if (p[8] == 2) {
-        i_new += p[9] * (u - v);
-    }
-    s[0] = i_new;
-    s[1] = d;
-    s[2] = ed;
-    return u;
-}
-"""
-
-_PID_PACK = """\
-/* Pack the class gains g (kp, ki, kd, n, b, c) as PIDController.pack_gains does, in double. */
-static void fs_pid_pack(fs_real *p, const double *g, double h, double u_min, double u_max,
-                        double aw, double tracking_time)
-{
-    double kp = g[0], ki = g[1], kd = g[2], n = g[3], b = g[4], c = g[5];
-    double ad, bd, tt, kbh = 0.0;
-    if (isinf(n)) {
-        ad = 0.0;
-        bd = kd / h;
-    } else {
-        ad = 1.0 / (1.0 + n * h);
-        bd = kd * n / (1.0 + n * h);
-    }
-    if (ki > 0.0) {
-        tt = tracking_time > 0.0 ? tracking_time : (kd > 0.0 ? sqrt(kd / ki) : kp / ki);
-        if (tt > 0.0) {
-            kbh = h / tt;
-            if (!(kbh <= 1.0)) {
-                kbh = isnan(kbh) ? 0.0 : 1.0;
-            }
-        }
-    }
-    p[0] = (fs_real)kp;
-    p[1] = (fs_real)(ki * h);
-    p[2] = (fs_real)ad;
-    p[3] = (fs_real)bd;
-    p[4] = (fs_real)b;
-    p[5] = (fs_real)c;
-    p[6] = (fs_real)u_min;
-    p[7] = (fs_real)u_max;
-    p[8] = (fs_real)aw;
-    p[9] = (fs_real)kbh;
-}
-"""
-
-# --- fuzzy PI -------------------------------------------------------------------------------
-
-_FUZZY_STEP = """\
-/* One fuzzy PI sample on packed parameters p and state s (updated in place): the Python
- * fuzzyservo.control.fuzzy_pi.fuzzy_pi_step line by line. p: K_e, K_de, K_du, u_min, u_max,
- * de scale (1 or 1/h), e(-1) rule (0: zero, 1: first), filter coefficient a, self-tuning;
- * s: u(k-1), e(k-1), y_f(k-1), started, alpha. */
-static fs_real fs_fuzzy_pi_step(const fs_real *p, fs_real *s, fs_real r, fs_real y)
-{
-    fs_real yf, e, e_prev, de, en, den, dun, alpha, u;
-    if (s[3] == 0) {
-        yf = y;
-        e = r - yf;
-        e_prev = p[6] == 1 ? e : 0;
-        s[3] = 1;
-    } else {
-        fs_real a = p[7];
-        yf = a * s[2] + (1 - a) * y;
-        e = r - yf;
-        e_prev = s[1];
-    }
-    de = (e - e_prev) * p[5];
-    en = p[0] * e;
-    den = p[1] * de;
-@SYSTEMS@
-    u = s[0] + alpha * p[2] * dun;
-    if (u < p[3]) {
-        u = p[3];
-    }
-    if (p[4] < u) {
-        u = p[4];
-    }
-    s[0] = u;
-    s[1] = e;
-    s[2] = yf;
-    s[4] = alpha;
-    return u;
-}
-"""
+def _c_text(text: str) -> str:
+    """``text`` safe inside a C block comment: no comment end, no line break, printable."""
+    t = "".join(ch if ch.isprintable() else " " for ch in str(text))
+    return t.replace("*/", "* /").replace("/*", "/ *")
 
 
-def _fuzzy_systems_code(ctl: Any, real: Real) -> tuple[str, str]:
-    """Definitions of the systems (after the evaluators' code) and the lines of the step
-    that evaluate them."""
+def _layout(law: Any) -> str:
+    """The law's layout as named constants, from its declaration (the names are checked
+    identifiers, :class:`fuzzyservo.control.law.Field`)."""
+    lines = [f"/* Layout of the law {law.name} ({_c_text(law.title)}), from its declaration. */"]
+    for prefix, what, fields in (("P", "packed parameters", law.params),
+                                 ("S", "state", law.state),
+                                 ("G", "gains (NAME_set_gains, in this order)", law.gains),
+                                 ("K", "packing constants", law.constants)):
+        lines.append(f"/* {what} */")
+        lines.append(f"#define FS_N{prefix} {len(fields)}")
+        for i, f in enumerate(fields):
+            lines.append(f"#define FS_{prefix}_{f.name.upper()} {i} /* {_c_text(f.doc)} "
+                         f"[{_c_text(f.unit)}] */")
+    return "\n".join(lines) + "\n"
+
+
+def _systems_code(controller: Any, law: Any, real: Real) -> tuple[str, list[Any], str]:
+    """The controller's fuzzy systems as C (after the evaluators' fragment): one system is
+    ``fs_sys_<role>``, two are ``fs_sys`` (both at once, as the Python's pair) with
+    ``fs_sys_<role>`` each; ``FS_SYS_<ROLE>`` is defined for each. Returns the code, the
+    tables (for the digest) and a description."""
     from .fuzzy_c import emit_pair, emit_system, fragment
 
-    du = (ctl.du_rules, ctl.du_lims)
-    if ctl.self_tuning:
-        alpha = (ctl.alpha_rules, ctl.alpha_lims)
-        defs = fragment() + "\n" + emit_pair("fs_sys", du, alpha, real=real)
-        call = "    fs_sys(en, den, &dun, &alpha);"
+    systems = controller.systems() if hasattr(controller, "systems") else {}
+    if not systems:
+        return "", [], ""
+    roles = list(systems)
+    bad = [r for r in roles if r not in law.systems]
+    if bad or len(roles) > 2 or (len(roles) == 2 and roles != ["du", "alpha"]):
+        raise ParameterError(f"law {law.name}: the C export writes one system, or the pair "
+                             f"du and alpha; got {roles}")
+    tables: list[Any] = []
+    for r in roles:
+        tables += list(systems[r])
+    defs = "".join(f"#define FS_SYS_{r.upper()} 1\n" for r in roles)
+    if len(roles) == 1:
+        code = emit_system(f"fs_sys_{roles[0]}", *systems[roles[0]], real=real)
     else:
-        defs = fragment() + "\n" + emit_system("fs_sys_du", du[0], du[1], real=real)
-        call = "    dun = fs_sys_du(en, den);\n    alpha = 1;"
-    return defs, call
+        code = emit_pair("fs_sys", systems["du"], systems["alpha"], real=real)
+    return fragment() + "\n" + defs + code, tables, ", ".join(roles)
 
 
 # --- the files ------------------------------------------------------------------------------
@@ -259,9 +183,9 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
     gains : mapping of str to float
         The kind's checked gains (:meth:`ControllerKind.check_gains`) [their units].
     controller : PIDController or FuzzyPIController
-        The controller built from them (its ``pack()`` is compiled in); its packed ``kind``
-        (the branch of ``fuzzyservo.control.controller_step``) selects the law, so the
-        exporter names no controller class (the registry builds them).
+        The controller built from them (its ``pack()`` is compiled in); its ``law`` gives the
+        layout and the C port, so the exporter names no controller class (the registry
+        builds them).
     name : str
         Prefix of the public identifiers (:func:`check_c_name`).
     real : {"double", "float"}
@@ -277,11 +201,11 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
         A controller class without C code, a bad name, or tables C cannot hold.
     """
     check_c_name(name)
-    law_kind = getattr(controller, "kind", None)
-    if law_kind not in (KIND_PID, KIND_FUZZY_PI):
+    law = controller.law
+    if law.c_source is None:
         raise ParameterError(
-            f"controller {kind.name} ({type(controller).__name__}) has no C code; the "
-            f"exporter expresses the PID family and the fuzzy PIs")
+            f"controller {kind.name} ({law.title}) has no C port: its law {law.name} declares "
+            f"no c_source")
     if real not in ("double", "float"):
         raise ParameterError(f"real must be 'double' or 'float', got {real!r}")
     gain_names = kind.gain_names
@@ -290,12 +214,13 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
     ts = float(controller.dt)
     upper = name.upper()
     packed = np.asarray(controller.pack(), dtype=np.float64)
-    n_p = packed.shape[0]
+    n_p = max(packed.shape[0], 1)
+    n_s = max(len(law.state), 1)
 
-    # class gains from the kind's gains: the kind's own or a constant it fixes
+    # the law's gains from the kind's gains: the kind's own or a constant it fixes
     merged = {**kind.implied, **dict(zip(gain_names, values, strict=True))}
     class_gains = []
-    for g in controller.gain_names:
+    for g in law.gain_names:
         if g in gain_names:
             class_gains.append(f"g[{gain_names.index(g)}]")
         else:
@@ -306,56 +231,35 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
               if kind.gain(g).allow_inf else
               f"    if (!(g[{i}] >= 0.0 && g[{i}] <= DBL_MAX)) {{\n        return {i + 1};\n    }}"
               for i, g in enumerate(gain_names)]
-    if law_kind == KIND_PID:
-        law = "PID"
-        tables: list[Any] = []
-        sys_defs = ""
-        laws = _PID_STEP + "\n" + _PID_PACK
-        tt = controller.tracking_time if controller.tracking_time is not None else 0.0
-        repack = (f"    fs_pid_pack(c->p, cg, {c_literal(ts)}, {c_literal(controller.u_min)}, "
-                  f"{c_literal(controller.u_max)}, "
-                  f"{c_literal(float(packed[8]))}, {c_literal(tt)});")
-        step_call = "fs_pid_step(c->p, c->s, r, y)"
-        init_body = ("    c->s[0] = u0 - c->p[0] * (c->p[4] - 1) * y0;\n"
-                     "    c->s[1] = 0;\n"
-                     "    c->s[2] = (c->p[5] - 1) * y0;\n"
-                     "    c->s[3] = 0;\n"
-                     "    c->s[4] = NAN;")
-        self_tuning = False
-    else:
-        law = "self-tuning fuzzy PI" if controller.self_tuning else "fuzzy PI"
-        self_tuning = bool(controller.self_tuning)
-        tables = [controller.du_rules, controller.du_lims]
-        if self_tuning:
-            tables += [controller.alpha_rules, controller.alpha_lims]
-        defs, call = _fuzzy_systems_code(controller, real)
-        sys_defs = defs
-        laws = _FUZZY_STEP.replace("@SYSTEMS@", call)
-        repack = ("    c->p[0] = (fs_real)cg[0];\n    c->p[1] = (fs_real)cg[1];\n"
-                  "    c->p[2] = (fs_real)cg[2];")
-        step_call = "fs_fuzzy_pi_step(c->p, c->s, r, y)"
-        init_body = ("    c->s[0] = u0;\n    c->s[1] = 0;\n    c->s[2] = 0;\n    c->s[3] = 0;\n"
-                     "    c->s[4] = 1;\n    (void)y0;")
+    sys_defs, tables, roles = _systems_code(controller, law, real)
+    port = Path(law.c_source).read_text(encoding="utf-8")
+    laws = _layout(law) + "\n" + port
+    has_alpha = bool(law.trace == "alpha" and getattr(controller, "self_tuning", True))
     digest = _tables_digest(tables) if tables else ""
 
-    options = _options(controller)
+    options = ", ".join(
+        f"{o} = {_option_text(getattr(controller, o))}" for o in kind.options
+        if hasattr(controller, o)) or "none"
+    title = law.title if not has_alpha else f"{law.title}, self-tuning"
     info = [
-        f"{name}.h / {name}.c: controller {kind.name} ({law}) generated by fuzzyservo "
-        f"{__version__}.",
+        f"{name}.h / {name}.c: controller {kind.name} ({_c_text(title)}) generated by "
+        f"fuzzyservo {__version__}.",
         "Do not edit: regenerate with the command below.",
         "",
-        f"command:     {command}" if command else "command:     (Python API)",
-        f"controller:  {kind.name} ({kind.title})",
-        "gains:       " + ", ".join(f"{g} = {v!r} {u}" for g, v, u in
+        f"command:     {_c_text(command)}" if command else "command:     (Python API)",
+        f"controller:  {kind.name} ({_c_text(kind.title)})",
+        f"law:         {law.name} (C port {Path(law.c_source).name})",
+        "gains:       " + ", ".join(f"{g} = {v!r} {_c_text(u)}" for g, v, u in
                                     zip(gain_names, values, units, strict=True)),
-        f"options:     {options}",
+        f"options:     {_c_text(options)}",
         f"sample time: {ts!r} s",
         f"arithmetic:  {real}",
     ]
     if tables:
-        info.append(f"fuzzy systems (SHA-256 of the packed tables): {digest}")
+        info.append(f"fuzzy systems ({roles}; SHA-256 of the packed tables): {digest}")
         for role, source, sha in systems:
-            info.append(f"  {role} from {source} (file SHA-256 {sha})")
+            info.append(f"  {_c_text(role)} from {_c_text(source)} (file SHA-256 "
+                        f"{_c_text(sha)})")
         if not systems:
             info.append("  the paper's (Aly et al. 2012, Fig. 3)")
     info += [
@@ -365,42 +269,38 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
         "-ffast-math; -ffp-contract=off, which -std=c99 implies with gcc) for results equal to",
         "the Python controller's; link with -lm.",
     ]
-    header = _header(name, upper, real, info, gain_names, values, units, ts, n_p, self_tuning,
-                     law)
+    header = _header(name, upper, real, info, gain_names, values, units, ts, n_p, n_s,
+                     has_alpha, _c_text(title))
     consts = [
-        _array("fs_p0", packed, real),
+        _array("fs_p0", packed, real) if packed.size else
+        "static const fs_real fs_p0[1] = {0};",
         c_array("double", "fs_g0", [c_literal(v) for v in values]),
+        c_array("double", "fs_k0", [c_literal(float(v)) for v in controller.law_constants()])
+        if len(law.constants) else "static const double fs_k0[1] = {0};",
     ]
     source = _source(name, upper, real, info, sys_defs, laws, consts, class_gains, checks,
-                     repack, step_call, init_body, len(gain_names), gain_names, self_tuning)
+                     len(gain_names), gain_names, has_alpha)
     stamp = hashlib.sha256((header + source).encode()).hexdigest()[:8]
     header = header.replace("@STAMP@", stamp)
     source = source.replace("@STAMP@", stamp)
     return CController(name=name, kind=kind.name, header=header, source=source, real=real,
                        gain_names=gain_names, gains=values, gain_units=units, ts=ts,
-                       self_tuning=self_tuning, digest=digest)
+                       self_tuning=has_alpha, digest=digest)
 
 
-def _options(controller: Any) -> str:
-    if controller.kind == KIND_PID:
-        tt = ("default" if controller.tracking_time is None
-              else f"{controller.tracking_time!r} s")
-        return (f"anti_windup = {controller.anti_windup}, tracking_time = {tt}, u in "
-                f"[{controller.u_min!r}, {controller.u_max!r}]")
-    return (f"initial_error = {controller.initial_error}, de_per = {controller.de_per}, "
-            f"filter_time = {controller.filter_time!r} s, u in [{controller.u_min!r}, "
-            f"{controller.u_max!r}]")
+def _option_text(v: Any) -> str:
+    if v is None:
+        return "default"
+    if isinstance(v, str):
+        return v
+    return repr(v)
 
 
 def _header(name: str, upper: str, real: Real, info: Sequence[str], gain_names: Sequence[str],
-            values: Sequence[float], units: Sequence[str], ts: float, n_p: int,
+            values: Sequence[float], units: Sequence[str], ts: float, n_p: int, n_s: int,
             self_tuning: bool, law: str) -> str:
-    if law == "PID":
-        change = "the proportional and derivative terms change at once"
-    else:
-        change = "incremental: the command continues from the last one"
     allowed = "finite and >= 0" + ("; n: > 0 or infinity" if "n" in gain_names else "")
-    gains_doc = "\n".join(f" *   g[{i}] = {g} [{u}] (exported: {v!r})"
+    gains_doc = "\n".join(f" *   g[{i}] = {g} [{_c_text(u)}] (exported: {v!r})"
                           for i, (g, v, u) in enumerate(zip(gain_names, values, units,
                                                             strict=True)))
     alpha = ""
@@ -432,7 +332,7 @@ typedef {real} {name}_real;
 /* One controller instance ({law}): packed parameters and state. Treat as opaque. */
 typedef struct {{
     {name}_real p[{n_p}];
-    {name}_real s[5];
+    {name}_real s[{n_s}];
 }} {name}_ctl;
 
 /* Start at rest, bumpless, as the simulator starts: the exported gains, measurement y0 [m]
@@ -447,8 +347,7 @@ void {name}_reset({name}_ctl *c, {name}_real y0, {name}_real u0);
  * the next sample. */
 {name}_real {name}_step({name}_ctl *c, {name}_real r, {name}_real y);
 
-/* Replace the gains, keeping the state; the next sample uses them
- * ({change}):
+/* Replace the gains, keeping the state; the next sample uses them:
 {gains_doc}
  * Returns 0, or i + 1 when g[i] is out of range ({allowed}), leaving the gains as they
  * were. */
@@ -470,8 +369,7 @@ double {name}_gain_default(int i);
 
 def _source(name: str, upper: str, real: Real, info: Sequence[str], sys_defs: str, laws: str,
             consts: Sequence[str], class_gains: Sequence[str], checks: Sequence[str],
-            repack: str, step_call: str, init_body: str, n_g: int,
-            gain_names: Sequence[str], self_tuning: bool) -> str:
+            n_g: int, gain_names: Sequence[str], self_tuning: bool) -> str:
     float_def = "#define FS_FLOAT 1\n" if real == "float" else ""
     names = ", ".join(f'"{g}"' for g in gain_names)
     alpha = ""
@@ -479,9 +377,10 @@ def _source(name: str, upper: str, real: Real, info: Sequence[str], sys_defs: st
         alpha = f"""
 {name}_real {name}_alpha(const {name}_ctl *c)
 {{
-    return c->s[4];
+    return c->s[FS_S_ALPHA];
 }}
 """
+    n_cg = max(len(class_gains), 1)
     return f"""{c_comment(info)}
 #include "{name}.h"
 
@@ -499,10 +398,11 @@ typedef {name}_real fs_real;
 {float_def}
 {sys_defs}
 {laws}
-/* The packed parameters of the exported controller (controller.pack() in Python), and its
- * gains. */
+/* The packed parameters of the exported controller (controller.pack() in Python), its
+ * gains, and the constants the law packs new gains with. */
 {consts[0]}
 {consts[1]}
+{consts[2]}
 
 void {name}_init({name}_ctl *c, {name}_real y0, {name}_real u0)
 {{
@@ -512,20 +412,20 @@ void {name}_init({name}_ctl *c, {name}_real y0, {name}_real u0)
 
 void {name}_reset({name}_ctl *c, {name}_real y0, {name}_real u0)
 {{
-{init_body}
+    fs_law_rest(c->p, c->s, y0, u0);
 }}
 
 {name}_real {name}_step({name}_ctl *c, {name}_real r, {name}_real y)
 {{
-    return {step_call};
+    return fs_law_step(c->p, c->s, r, y);
 }}
 
 int {name}_set_gains({name}_ctl *c, const double g[{upper}_N_GAINS])
 {{
-    double cg[{len(class_gains)}];
+    double cg[{n_cg}];
 {chr(10).join(checks)}
 {chr(10).join(f"    cg[{i}] = {expr};" for i, expr in enumerate(class_gains))}
-{repack}
+    fs_law_pack(c->p, cg, fs_k0);
     return 0;
 }}
 

@@ -2,7 +2,7 @@
 
 The plant's maths is the fragment ``csrc/plant.c`` (:func:`plant_fragment`), a line-by-line
 port of :mod:`fuzzyservo.plant.nonlinear` and of the plant half of the compiled loops
-:func:`fuzzyservo.sim.closed_loop.run_linear` and :func:`~fuzzyservo.sim.closed_loop.run_nonlinear`
+:func:`fuzzyservo.sim.loops.linear_one` and :func:`~fuzzyservo.sim.loops.nonlinear_one`
 (ring buffer of delayed commands, ZOH update, RK4 split at the fractional delay, transducer
 rounding). :func:`emit_servo` writes what goes after it: the plant's numbers, every one an
 exact C99 hexadecimal literal of the double the Python uses, and the API::
@@ -87,8 +87,8 @@ class ServoC:
         C99 text to paste after :func:`plant_fragment`: constants, ``fs_servo`` and its
         functions.
     kind : {"linear", "nonlinear"}
-        Which loop the code mirrors: ``run_linear`` (eq. (8), small-signal) or
-        ``run_nonlinear``.
+        Which loop the code mirrors: ``linear_one`` (eq. (8), small-signal) or
+        ``nonlinear_one``.
     outputs : tuple of str
         Output names in the order of ``fs_servo_output``'s index: ``y`` (the measured
         position, after the transducer's resolution rounding), then the plant's states as in
@@ -279,7 +279,7 @@ def emit_servo(plant: LinearPlant | NonlinearPlant, *, ts: float, delay: float,
                     f"sample; at most {MAX_RK4_STEPS:.0e} are allowed")
         n1, n0 = (int(v) for v in substep_split(n_sub, f, ts))
         kind: Literal["linear", "nonlinear"] = "nonlinear"
-        info += ["nonlinear two-chamber model (run_nonlinear): classical RK4, step bound "
+        info += ["nonlinear two-chamber model (nonlinear_one): classical RK4, step bound "
                  f"{plant.substep!r} s,",
                  f"{n_sub} substeps per sample"
                  + (f" ({n1} before t_k + f, {n0} after)" if f > 0.0 else "")]
@@ -322,7 +322,7 @@ def emit_servo(plant: LinearPlant | NonlinearPlant, *, ts: float, delay: float,
         kind = "linear"
         n_sub = 0
         n_split = (0, 0)
-        info += [f"linear plant (run_linear), {n} states, exact ZOH with the delay:",
+        info += [f"linear plant (linear_one), {n} states, exact ZOH with the delay:",
                  "x_{k+1} = Phi x_k + G0 (u_{k-d} - u0) + G1 (u_{k-d-1} - u0), y = y0 + C x"]
         consts = [
             f"enum {{ FS_SERVO_NX = {n}, FS_SERVO_RING = {ring} }};",

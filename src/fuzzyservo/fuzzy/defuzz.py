@@ -15,9 +15,9 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-import numba
 import numpy as np
 
+from .._jit import kernel
 from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
 
@@ -84,7 +84,7 @@ def pl_tables(output: LinguisticVariable) -> tuple[FloatArray, FloatArray, Float
     return bp, slope, icpt
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _agg_at(y: float, n: int, c: FloatArray, m: FloatArray, h: FloatArray,
             impl: int, agg: int) -> tuple[float, float]:
     """(aggregate, unclamped sum) at y of the n active lines c + m y with heights h."""
@@ -103,7 +103,7 @@ def _agg_at(y: float, n: int, c: FloatArray, m: FloatArray, h: FloatArray,
     return min(1.0, total), total
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _insort(buf: FloatArray, n: int, y: float) -> int:
     """Insert y into the sorted buf[:n]; return the new length."""
     i = n
@@ -114,7 +114,7 @@ def _insort(buf: FloatArray, n: int, y: float) -> int:
     return n + 1
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _pl_point(w: FloatArray, rule_out: IntArray, bp: FloatArray, slope: FloatArray,
               icpt: FloatArray, impl: int, agg: int, mode: int,
               hts: FloatArray, lab: IntArray, c: FloatArray, m: FloatArray, h: FloatArray,
@@ -275,7 +275,7 @@ def _pl_point(w: FloatArray, rule_out: IntArray, bp: FloatArray, slope: FloatArr
     return tot / cnt
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _pl_batch(w: FloatArray, rule_out: IntArray, bp: FloatArray, slope: FloatArray,
               icpt: FloatArray, impl: int, agg: int, mode: int, out: FloatArray) -> None:
     """out[i] = defuzzified exact piecewise-linear aggregate for the strengths w[i, :]."""
@@ -298,7 +298,7 @@ def _pl_batch(w: FloatArray, rule_out: IntArray, bp: FloatArray, slope: FloatArr
                            hts, lab, c, m, h, cand, su, sv, gu, gv)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _sampled_batch(w: FloatArray, rule_out: IntArray, grid: FloatArray, mf: FloatArray,
                    impl: int, agg: int, mode: int, out: FloatArray) -> None:
     """Sampled aggregate on ``grid``: centroid by the trapezoid rule (mode 0), bisector (1),

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from .._jit import kernel
 from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import InputError, ParameterError
 from .partition import eval_partition, partition_tables, scratch_sizes
@@ -101,12 +102,12 @@ _WG = np.array([0.129484966168869693270611432679082, 0.2797053914892766679014677
 # membership functions (one implementation; numpy callers go through ``membership``)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _sigmoid(x: float, c: float, a: float) -> float:
     return 1.0 / (1.0 + math.exp(-a * (x - c)))
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _smf(x: float, a: float, b: float) -> float:
     if x <= a:
         return 0.0
@@ -120,7 +121,7 @@ def _smf(x: float, a: float, b: float) -> float:
     return 1.0 - 2.0 * t * t
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def mf_value(code: int, f: FloatArray, off: int, n: int, x: float) -> float:
     """Membership (height applied) of term ``code`` with parameters f[off:off+n], height
     f[off+n], at x. Shapes and conventions: fuzzyservo.fuzzy.system."""
@@ -223,7 +224,7 @@ def mf_value(code: int, f: FloatArray, off: int, n: int, x: float) -> float:
     return np.nan
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _mf_array(code: int, f: FloatArray, off: int, n: int, x: FloatArray, out: FloatArray
               ) -> None:
     for i in range(x.shape[0]):
@@ -597,7 +598,7 @@ def _work_size(n_in: int, n_terms: int, n_rules: int, stack: int, items: int, n_
 # rule strengths
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def _strengths(ints: IntArray, f: FloatArray, xin: FloatArray, mu: FloatArray,
                w: FloatArray, stk: FloatArray, fired: IntArray, nz: IntArray) -> int:
     """Input memberships mu (global term index), rule strengths w (weight applied) and the
@@ -776,7 +777,7 @@ def _strengths(ints: IntArray, f: FloatArray, xin: FloatArray, mu: FloatArray,
     return nf
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _probor(a: float, b: float) -> float:
     """a + b - a b, exact at the ends: 1 - (1 - a)(1 - b) once either is >= 1/2 (so that
     probor(1, b) is 1 and NOT of it 0, whatever b), else the sum form (no loss for small
@@ -786,7 +787,7 @@ def _probor(a: float, b: float) -> float:
     return a + b - a * b
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def f_weight(ints: IntArray, f: FloatArray, r: int) -> float:
     """Weight of rule r."""
     return f[ints[H_FWEIGHT] + r]
@@ -796,7 +797,7 @@ def f_weight(ints: IntArray, f: FloatArray, r: int) -> float:
 # the items of one output: (term, height) pairs whose implied sets are aggregated
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _items(ints: IntArray, w: FloatArray, fired: IntArray, nf: int, o: int, hts: FloatArray,
            lab: IntArray, h: FloatArray) -> int:
     """Fill lab/h with the output-o items that fired; return their number.
@@ -840,7 +841,7 @@ def _items(ints: IntArray, w: FloatArray, fired: IntArray, nf: int, o: int, hts:
 # piecewise-linear outputs: exact
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _insort(buf: FloatArray, n: int, y: float) -> int:
     i = n
     while i > 0 and buf[i - 1] > y:
@@ -850,7 +851,7 @@ def _insort(buf: FloatArray, n: int, y: float) -> int:
     return n + 1
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _agg_lines(y: float, na: int, c: FloatArray, m: FloatArray, hh: FloatArray, impl: int,
                agg: int) -> tuple[float, float]:
     """(aggregate, unclamped sum) at y of the na lines c + m y clipped / scaled by hh."""
@@ -875,7 +876,7 @@ def _agg_lines(y: float, na: int, c: FloatArray, m: FloatArray, hh: FloatArray, 
     return total, total
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _pl_segments(n_items: int, lab: IntArray, h: FloatArray, f: FloatArray, bp_off: int,
                  k0: int, k1: int, s_off: int, i_off: int, n_t: int, impl: int, agg: int,
                  c: FloatArray, m: FloatArray, hh: FloatArray, cand: FloatArray,
@@ -966,7 +967,7 @@ def _pl_segments(n_items: int, lab: IntArray, h: FloatArray, f: FloatArray, bp_o
     return n_seg
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _defuzz_segments(n_seg: int, su: FloatArray, sv: FloatArray, gu: FloatArray,
                      gv: FloatArray, mode: int) -> float:
     """Centroid (0), bisector (1), mean (2), smallest (3) or largest (4) of maximum of a
@@ -1055,7 +1056,7 @@ def _defuzz_segments(n_seg: int, su: FloatArray, sv: FloatArray, gu: FloatArray,
 # singleton outputs
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _singletons(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray,
                 h: FloatArray, hts: FloatArray, mode: int) -> float:
     """COGS and the maxima of singleton outputs (heights aggregated per singleton)."""
@@ -1119,7 +1120,7 @@ def _singletons(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArr
 # smooth outputs: pieces located, adaptive Gauss-Kronrod
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _g(y: float, ints: IntArray, f: FloatArray, first: int, n_items: int, lab: IntArray,
        h: FloatArray) -> float:
     """The aggregate at y."""
@@ -1143,7 +1144,7 @@ def _g(y: float, ints: IntArray, f: FloatArray, first: int, n_items: int, lab: I
     return acc
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _signature(y: float, ints: IntArray, f: FloatArray, first: int, n_items: int,
                lab: IntArray, h: FloatArray) -> int:
     """Which smooth piece y lies on: the largest item (max), the clipped items, saturation."""
@@ -1179,7 +1180,7 @@ def _signature(y: float, ints: IntArray, f: FloatArray, first: int, n_items: int
     return key
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _knots(code: int, f: FloatArray, off: int, n: int, lo: float, hi: float, buf: FloatArray,
            k: int) -> int:
     """Add to buf the points inside (lo, hi) where a term is not smooth or peaks."""
@@ -1215,7 +1216,7 @@ def _knots(code: int, f: FloatArray, off: int, n: int, lo: float, hi: float, buf
     return k
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _gk(a: float, b: float, c0: float, ints: IntArray, f: FloatArray, first: int,
         n_items: int, lab: IntArray, h: FloatArray, xgk: FloatArray, wgk: FloatArray,
         wg: FloatArray) -> tuple[float, float, float, float]:
@@ -1244,7 +1245,7 @@ def _gk(a: float, b: float, c0: float, ints: IntArray, f: FloatArray, first: int
     return ka * hl, ga * hl, km * hl, gm * hl
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _golden_max(a: float, b: float, span: float, ints: IntArray, f: FloatArray, first: int,
                 n_items: int, lab: IntArray, h: FloatArray) -> float:
     """Golden-section search for the maximum of the aggregate on [a, b]."""
@@ -1273,7 +1274,7 @@ def _golden_max(a: float, b: float, span: float, ints: IntArray, f: FloatArray, 
     return 0.5 * (aa + bb)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _newton_max(x: float, d: float, d2: float, ints: IntArray, f: FloatArray, first: int,
                 n_items: int, lab: IntArray, h: FloatArray) -> tuple[float, bool]:
     """Newton steps from x on the Richardson-extrapolated central difference of step d (the
@@ -1291,7 +1292,7 @@ def _newton_max(x: float, d: float, d2: float, ints: IntArray, f: FloatArray, fi
     return xn, False
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _refine_max(x: float, a: float, b: float, span: float, ints: IntArray, f: FloatArray,
                 first: int, n_items: int, lab: IntArray, h: FloatArray) -> float:
     """Newton steps on the derivative (central differences, Richardson-extrapolated) from a
@@ -1342,7 +1343,7 @@ def _refine_max(x: float, a: float, b: float, span: float, ints: IntArray, f: Fl
     return xn
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, h: FloatArray,
             mode: int, xgk: FloatArray, wgk: FloatArray, wg: FloatArray) -> float:
     """Defuzzified smooth aggregate of output o (NaN if empty)."""
@@ -1578,7 +1579,7 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
 # one point, a batch, the loop's two-input call
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def eval_point(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray,
                work: FloatArray, iw: IntArray) -> None:
     """Evaluate every output at the point x (n_in,) into out (n_out,); work and iw are
@@ -1704,7 +1705,7 @@ def eval_point(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray,
         out[o] = val
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def eval_batch(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray) -> None:
     """out[i, :] = outputs at x[i, :] (one core)."""
     work = np.empty(ints[H_WORK])
@@ -1713,7 +1714,7 @@ def eval_batch(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray) ->
         eval_point(ints, f, x[i], out[i], work, iw)
 
 
-@numba.njit(cache=True, parallel=True)
+@kernel(parallel=True)
 def _eval_parallel(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray,
                    n_chunks: int) -> None:
     n = x.shape[0]
@@ -1726,7 +1727,7 @@ def _eval_parallel(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray
             eval_point(ints, f, x[i], out[i], work, iw)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def eval_first2(x1: float, x2: float, ints: IntArray, f: FloatArray) -> float:
     """First output of a two-input system at (x1, x2): the call of the controllers' loops."""
     # one float and one integer allocation per call: the point and the outputs live in the

@@ -39,8 +39,8 @@ import numba
 import numba.extending
 import numpy as np
 from numba.core import cgutils
-from numba.np.arrayobj import make_array
 
+from .._jit import data_pointer, kernel
 from .._typing import FloatArray, IntArray
 
 __all__ = [
@@ -66,7 +66,7 @@ _SIXTH = 1.0 / 6.0
 GridTable = tuple[Any, int, int, int, int, float, float, float, float, float, float, int, float]
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def _edge_terms(a: float) -> tuple[float, float, float]:
     """The powers of a clip height the segment integrals use: ``(0.5 a) a``, ``a a`` and
     ``(a a) a`` (computed once per height: adjacent segments share their common end's)."""
@@ -74,7 +74,7 @@ def _edge_terms(a: float) -> tuple[float, float, float]:
     return 0.5 * a * a, aa, aa * a
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def _segment(a: float, pa: float, qa: float, ca: float, b: float, pb: float, cb: float
              ) -> tuple[float, float]:
     """:func:`segment_integrals` from the heights and their :func:`_edge_terms`."""
@@ -87,7 +87,7 @@ def _segment(a: float, pa: float, qa: float, ca: float, b: float, pb: float, cb:
     return area, moment
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def segment_integrals(a: float, b: float) -> tuple[float, float]:
     """Area and first moment over s in [0, 1] of max(min(a, 1 - s), min(b, s)).
 
@@ -110,27 +110,6 @@ def segment_integrals(a: float, b: float) -> tuple[float, float]:
     return _segment(a, pa, qa, ca, b, pb, cb)
 
 
-@numba.extending.intrinsic
-def _data_pointer(typingctx: Any, arr: Any) -> Any:
-    """The data pointer of an array (``CPointer(dtype)``), indexed as ``ptr[i]``.
-
-    Compiled loops pass pointers, not arrays, to the small functions they inline: numba's
-    IR-level inlining counts references to every array argument with an atomic operation per
-    call, which cost more than the fuzzy evaluation itself; a pointer is a plain value. The
-    array must outlive the pointer and be indexed within its bounds (no check is made).
-    """
-    if not isinstance(arr, numba.types.Array):
-        return None
-    sig = numba.types.CPointer(arr.dtype)(arr)  # type: ignore[no-untyped-call]
-
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        ary = make_array(signature.args[0])(  # type: ignore[no-untyped-call]
-            context, builder, value=args[0])
-        return ary.data
-
-    return sig, codegen
-
-
 #: Output labels up to which the clip heights are gathered in a stack buffer (more: found by
 #: scanning the four rules for each label, as before).
 _HEIGHTS_CAP = 16
@@ -150,11 +129,10 @@ def _height_buffer_intrinsic(typingctx: Any) -> Any:
 
 
 #: The intrinsics as plain callables for the type checker (numba sees the same objects).
-data_pointer = cast(Callable[[Any], Any], _data_pointer)
 _height_buffer = cast(Callable[[], Any], _height_buffer_intrinsic)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def grid_table(rules: IntArray, lims: FloatArray) -> GridTable:
     """A rule table and its ``lims`` as one value the inlined kernels take: ``(rules pointer,
     n2, n1, row stride, column stride, lo1, hi1, lo2, hi2, out_lo, out_hi, n_out, default)``
@@ -164,7 +142,7 @@ def grid_table(rules: IntArray, lims: FloatArray) -> GridTable:
             lims[0], lims[1], lims[2], lims[3], lims[4], lims[5], int(lims[6]), lims[7])
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def _cell(x1: float, x2: float, tab: GridTable) -> tuple[int, int, float, float]:
     """Clip the inputs and locate them: grid cell (k1, k2) and fractions (f1, f2) in it."""
     n2 = tab[1]
@@ -192,7 +170,7 @@ def _cell(x1: float, x2: float, tab: GridTable) -> tuple[int, int, float, float]
     return k1, k2, t1 - k1, t2 - k2
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def _height(
     j: int, la: int, wa: float, lb: int, wb: float, lc: int, wc: float, ld: int, wd: float
 ) -> float:
@@ -203,7 +181,7 @@ def _height(
     )
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def _accumulate(ha: float, pa: float, qa: float, ca: float, hb: float, fj: float, area: float,
                 parea: float, moment: float
                 ) -> tuple[float, float, float, float, float, float]:
@@ -236,7 +214,7 @@ def _accumulate(ha: float, pa: float, qa: float, ca: float, hb: float, fj: float
     return pb, qb, cb, area, parea, moment
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def _centroid(k1: int, k2: int, f1: float, f2: float, tab: GridTable) -> float:
     """Exact centroid of the aggregate of the (at most) four rules of cell (k1, k2)."""
     rp = tab[0]
@@ -326,7 +304,7 @@ def _centroid(k1: int, k2: int, f1: float, f2: float, tab: GridTable) -> float:
     return lo + (tab[10] - lo) * (parea + moment) / (area * (n_out - 1))
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def grid_eval(x1: float, x2: float, tab: GridTable) -> float:
     """:func:`eval_uniform_grid` on a :func:`grid_table` (inlined by the compiled loops)."""
     if x1 != x1 or x2 != x2:
@@ -335,7 +313,7 @@ def grid_eval(x1: float, x2: float, tab: GridTable) -> float:
     return _centroid(k1, k2, f1, f2, tab)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@kernel(inline=True, error_model="numpy")
 def grid_pair(x1: float, x2: float, tab_a: GridTable, tab_b: GridTable) -> tuple[float, float]:
     """:func:`eval_uniform_pair` on two :func:`grid_table` values (inlined by the loops)."""
     if x1 != x1 or x2 != x2:
@@ -349,7 +327,7 @@ def grid_pair(x1: float, x2: float, tab_a: GridTable, tab_b: GridTable) -> tuple
     return ya, _centroid(k1, k2, f1, f2, tab_b)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -> float:
     """Crisp output of a two-input min/min/max/centroid system on uniform triangles.
 
@@ -373,7 +351,7 @@ def eval_uniform_grid(x1: float, x2: float, rules: IntArray, lims: FloatArray) -
     return grid_eval(x1, x2, grid_table(rules, lims))
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def eval_uniform_pair(x1: float, x2: float, rules_a: IntArray, lims_a: FloatArray,
                       rules_b: IntArray, lims_b: FloatArray) -> tuple[float, float]:
     """Two systems on the same inputs, e.g. Δu and α of the self-tuning controller.
@@ -386,7 +364,7 @@ def eval_uniform_pair(x1: float, x2: float, rules_a: IntArray, lims_a: FloatArra
     return grid_pair(x1, x2, grid_table(rules_a, lims_a), grid_table(rules_b, lims_b))
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def eval_uniform_checked(x1: float, x2: float, rules: IntArray, lims: FloatArray) -> float:
     """As :func:`eval_uniform_grid`, but NaN whenever an input is not finite (NaN or ±inf).
 
@@ -397,7 +375,7 @@ def eval_uniform_checked(x1: float, x2: float, rules: IntArray, lims: FloatArray
     return eval_uniform_grid(x1, x2, rules, lims)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def eval_uniform_batch(
     x1: FloatArray, x2: FloatArray, rules: IntArray, lims: FloatArray, out: FloatArray
 ) -> int:

@@ -32,9 +32,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from .._jit import kernel
 from .._typing import FloatArray, IntArray
 from .kernels import segment_integrals
 from .system import And, FuzzySystem, Is, Term
@@ -235,7 +235,7 @@ def scratch_sizes(system: FuzzySystem) -> tuple[int, int]:
     return n_in + t_in + t_out + 8, 2 * n_in + t_in
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _insort5(buf: FloatArray, n: int, y: float) -> int:
     i = n
     while i > 0 and buf[i - 1] > y:
@@ -245,7 +245,7 @@ def _insort5(buf: FloatArray, n: int, y: float) -> int:
     return n + 1
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _g2(y: float, m1: float, c1: float, a: float, m2: float, c2: float, b: float,
         impl: int) -> float:
     f1 = c1 + m1 * y
@@ -269,7 +269,7 @@ def _g2(y: float, m1: float, c1: float, a: float, m2: float, c2: float, b: float
     return f1 if f1 > f2 else f2
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _interval(p: float, q: float, m1: float, c1: float, a: float, m2: float, c2: float,
               b: float, impl: int, ref: float, scale: float, cand: FloatArray
               ) -> tuple[float, float]:
@@ -318,7 +318,7 @@ def _interval(p: float, q: float, m1: float, c1: float, a: float, m2: float, c2:
     return area, mom
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def eval_partition(x: FloatArray, pi: IntArray, pf: FloatArray, out: FloatArray,
                    work: FloatArray, iw: IntArray) -> None:
     """Centroid of every output at the (clipped) inputs ``x``; NaN where no rule fires.

@@ -39,9 +39,9 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
+from .._jit import kernel
 from .._typing import FloatArray
 from ..errors import SimulationDivergedError
 from .params import ServoParams
@@ -146,13 +146,13 @@ def pack(params: ServoParams) -> FloatArray:
     return p
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def orifice_root(dp: float, p_cr: float) -> float:
     """sgn(Δp) sqrt|Δp| with a laminar regularisation: Δp / (Δp² + p_cr²)^(1/4) [Pa^0.5]."""
     return dp / math.sqrt(math.sqrt(dp * dp + p_cr * p_cr))
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def supply_pressure(t: float, p: FloatArray) -> float:
     """P_s(t) = P_s + ripple sin(2π f t) [Pa]."""
     if p[P_RIPA] == 0.0:
@@ -161,7 +161,7 @@ def supply_pressure(t: float, p: FloatArray) -> float:
     return p[P_PS] + p[P_RIPA] * math.sin(2.0 * math.pi * p[P_RIPF] * t)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def valve_flows(xv: float, pf: float, pn: float, ps: float, p: FloatArray) -> tuple[float, float]:
     """Flow into the full-bore side Q_f and out of the annulus side Q_n [m³/s], eqs. (2)-(3).
 
@@ -183,7 +183,7 @@ def valve_flows(xv: float, pf: float, pn: float, ps: float, p: FloatArray) -> tu
     return qf, qn
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def friction_force(v: float, p: FloatArray) -> float:
     """Viscous plus smoothed Stribeck/Coulomb friction opposing v [N]."""
     f = p[P_B] * v
@@ -193,7 +193,7 @@ def friction_force(v: float, p: FloatArray) -> float:
     return f
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def stop_force(x: float, v: float, p: FloatArray) -> float:
     """End-stop cushion force (spring-damper beyond 0 and L, pushing only) [N]."""
     if x < 0.0:
@@ -205,7 +205,7 @@ def stop_force(x: float, v: float, p: FloatArray) -> float:
     return 0.0
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def floor_factor(pressure: float, floor: float) -> float:
     """Factor on a falling chamber pressure's rate: 0 at the floor, 1 from floor + band up.
 
@@ -221,7 +221,7 @@ def floor_factor(pressure: float, floor: float) -> float:
     return z * z * (3.0 - 2.0 * z)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def rhs(t: float, x: FloatArray, u: float, p: FloatArray, dx: FloatArray) -> None:
     """Write dx/dt of the nonlinear servo into ``dx`` (no allocation).
 
@@ -296,7 +296,7 @@ def rhs(t: float, x: FloatArray, u: float, p: FloatArray, dx: FloatArray) -> Non
     dx[S_V] = force / p[P_M]
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def rk4_steps(t: float, x: FloatArray, u: float, p: FloatArray, dt: float, n_sub: int,
               k1: FloatArray, k2: FloatArray, k3: FloatArray, k4: FloatArray,
               xt: FloatArray) -> bool:
@@ -328,7 +328,7 @@ def rk4_steps(t: float, x: FloatArray, u: float, p: FloatArray, dt: float, n_sub
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def rk4_advance_ws(t: float, x: FloatArray, u: float, p: FloatArray, dt: float, n_sub: int,
                    work: FloatArray) -> bool:
     """Advance ``x`` in place over ``dt`` with ``n_sub`` classical RK4 substeps, ``u`` held.
@@ -339,7 +339,7 @@ def rk4_advance_ws(t: float, x: FloatArray, u: float, p: FloatArray, dt: float, 
     return rk4_steps(t, x, u, p, dt, n_sub, work[0], work[1], work[2], work[3], work[4])
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def rk4_advance(t: float, x: FloatArray, u: float, p: FloatArray, dt: float, n_sub: int) -> bool:
     """:func:`rk4_advance_ws` with its own scratch array (one small allocation per call)."""
     work = np.empty((5, x.shape[0]))

@@ -23,9 +23,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from .._jit import kernel
 from .._typing import ArrayLike, FloatArray
 from ..errors import ParameterError
 
@@ -160,7 +160,7 @@ _PADE13 = (64764752532480000.0, 32382376266240000.0, 7771770303897600.0,
 _THETA13 = 5.371920351148152
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def _balance(a: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Diagonal similarity B = D⁻¹ A D with powers of two (exact), as LAPACK's gebal."""
     b = a.copy()

@@ -20,10 +20,9 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import numba
 import numpy as np
 
-from .._typing import ArrayLike, FloatArray, IntArray
+from .._typing import ArrayLike, FloatArray
 from ..control.base import PackedController
 from ..errors import InputError, ParameterError
 from ..plant.zoh import split_delay
@@ -34,195 +33,17 @@ from .closed_loop import (
     Plant,
     check_delay,
     profile,
-    ring_size,
-    run_linear,
-    run_linear_pair,
-    run_nonlinear,
     time_grid,
 )
 from .closed_loop import (
     _noise as make_noise,
 )
+from .loops import LawRows, LinearRows, NonlinearRows, Outputs, Signals, kernels, run_chunks
 from .references import Reference, sample_reference
 from .result import BatchResult
-from .stepinfo import (
-    METRIC_NAMES,
-    N_METRICS,
-    N_TAIL,
-    TAIL_NAMES,
-    TAIL_WORK,
-    metric_options,
-    step_metrics_core,
-    tail_oscillation_work,
-)
+from .stepinfo import METRIC_NAMES, N_METRICS, N_TAIL, TAIL_NAMES, metric_options
 
 __all__ = ["simulate_batch"]
-
-
-def _chunks(n: int) -> int:
-    return max(1, min(n, 4 * numba.get_num_threads()))
-
-
-@numba.njit(cache=True, nogil=True)
-def _fill_ref(rbuf: FloatArray, roff: FloatArray, y0: float) -> None:
-    for k in range(roff.shape[0]):
-        rbuf[k] = roff[k] + y0
-
-
-@numba.njit(cache=True, nogil=True)
-def _finish_run(i: int, bad: int, t: FloatArray, yv: FloatArray, uv: FloatArray,
-                av: FloatArray, rbuf: FloatArray, mopts: FloatArray, metrics: FloatArray,
-                tail_fraction: float, tail: FloatArray, tbuf: FloatArray,
-                twork: FloatArray) -> None:
-    """Run i's metrics and tail (NaN, and NaN traces from sample ``bad`` on, if diverged)."""
-    n_t = t.shape[0]
-    if bad >= 0:
-        for k in range(bad, n_t):
-            yv[k] = np.nan
-            uv[k] = np.nan
-            av[k] = np.nan
-        for m in range(metrics.shape[1]):
-            metrics[i, m] = np.nan
-        for m in range(N_TAIL):
-            tail[i, m] = np.nan
-    else:
-        step_metrics_core(t, yv, uv, rbuf, yv[0], rbuf[n_t - 1], mopts[0], mopts[1],
-                          mopts[2], mopts[3], metrics[i])
-        tail_oscillation_work(t, yv, tail_fraction, tbuf, twork)
-        for m in range(N_TAIL):
-            tail[i, m] = tbuf[m]
-
-
-@numba.njit(cache=True, parallel=True)
-def _batch_linear(
-    kind: int, cps: FloatArray, cs0: FloatArray,
-    du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
-    lps: FloatArray, y0s: FloatArray, u0s: FloatArray, t: FloatArray, roff: FloatArray,
-    noise: FloatArray,
-    keep: bool, y_tr: FloatArray, u_tr: FloatArray, a_tr: FloatArray,
-    mopts: FloatArray, metrics: FloatArray, tail_fraction: float, tail: FloatArray,
-    bad: IntArray, n_chunks: int,
-) -> None:
-    n = cps.shape[0]
-    n_t = t.shape[0]
-    nx_max = 0
-    d_max = 0
-    for i in range(n):
-        nx_max = max(nx_max, int(lps[i, 0]))
-        d_max = max(d_max, int(lps[i, 1]))
-    for c in numba.prange(n_chunks):
-        lo = c * n // n_chunks
-        hi = (c + 1) * n // n_chunks
-        # buffers of the two runs a chunk advances together (run_linear_pair)
-        ybuf = np.empty((2, n_t))
-        ubuf_tr = np.empty((2, n_t))
-        abuf = np.empty((2, n_t))
-        rbuf = np.empty((2, n_t))
-        x = np.empty((2, nx_max))
-        xn = np.empty((2, nx_max))
-        ring = np.empty((2, ring_size(d_max, n_t)))
-        cs = np.empty((2, cs0.shape[1]))
-        no_x = np.empty((0, nx_max))  # passed whole: a slice is another array type (layout
-        # 'A'), for which run_linear would be compiled a second time (about 70 s)
-        no_xop = np.zeros(nx_max)
-        no_noise = np.empty(0)
-        tbuf = np.empty(N_TAIL + 1)
-        twork = np.empty((TAIL_WORK, 3))
-        i = lo
-        while i < hi:
-            m = min(2, hi - i)  # runs in this step: a pair, or the chunk's last one
-            for b in range(m):
-                nx = int(lps[i + b, 0])
-                for j in range(nx):
-                    x[b, j] = 0.0
-                for j in range(cs.shape[1]):
-                    cs[b, j] = cs0[i + b, j]
-                _fill_ref(rbuf[b], roff[min(i + b, roff.shape[0] - 1)], y0s[i + b])
-            ya = y_tr[i] if keep else ybuf[0]
-            ua = u_tr[i] if keep else ubuf_tr[0]
-            aa = a_tr[i] if keep else abuf[0]
-            nza = noise[min(i, noise.shape[0] - 1)] if noise.shape[0] > 0 else no_noise
-            na = int(lps[i, 0])
-            if m == 2:
-                yb = y_tr[i + 1] if keep else ybuf[1]
-                ub = u_tr[i + 1] if keep else ubuf_tr[1]
-                ab = a_tr[i + 1] if keep else abuf[1]
-                nzb = (noise[min(i + 1, noise.shape[0] - 1)] if noise.shape[0] > 0
-                       else no_noise)
-                nb = int(lps[i + 1, 0])
-                bad[i], bad[i + 1] = run_linear_pair(
-                    kind, cps[i], cs[0], cps[i + 1], cs[1], du_rules, du_lims, a_rules,
-                    a_lims, lps[i], lps[i + 1], u0s[i], u0s[i + 1], rbuf[0], rbuf[1], nza,
-                    nzb, y0s[i], y0s[i + 1], x[0, :na], xn[0, :na], x[1, :nb], xn[1, :nb],
-                    ring[0], ring[1], ya, ua, aa, yb, ub, ab)
-                _finish_run(i + 1, bad[i + 1], t, yb, ub, ab, rbuf[1], mopts, metrics,
-                            tail_fraction, tail, tbuf, twork)
-            else:
-                bad[i] = run_linear(kind, cps[i], cs[0], du_rules, du_lims, a_rules, a_lims,
-                                    lps[i], u0s[i], no_xop[:na], rbuf[0], nza, y0s[i],
-                                    x[0, :na], xn[0, :na], ring[0], ya, ua, aa, no_x)
-            _finish_run(i, bad[i], t, ya, ua, aa, rbuf[0], mopts, metrics, tail_fraction,
-                        tail, tbuf, twork)
-            i += m
-
-
-@numba.njit(cache=True, parallel=True)
-def _batch_nonlinear(
-    kind: int, cps: FloatArray, cs0: FloatArray,
-    du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
-    pps: FloatArray, x0s: FloatArray, y0s: FloatArray, u0s: FloatArray, ds: IntArray,
-    fs: FloatArray,
-    n_subs: IntArray, ts: float, t: FloatArray, roff: FloatArray, noise: FloatArray,
-    force: FloatArray,
-    keep: bool, y_tr: FloatArray, u_tr: FloatArray, a_tr: FloatArray,
-    mopts: FloatArray, metrics: FloatArray, tail_fraction: float, tail: FloatArray,
-    bad: IntArray, n_chunks: int,
-) -> None:
-    n = cps.shape[0]
-    n_t = t.shape[0]
-    nx = x0s.shape[1]
-    d_max = 0
-    for i in range(n):
-        d_max = max(d_max, ds[i])
-    for c in numba.prange(n_chunks):
-        lo = c * n // n_chunks
-        hi = (c + 1) * n // n_chunks
-        ybuf = np.empty(n_t)
-        ubuf_tr = np.empty(n_t)
-        abuf = np.empty(n_t)
-        rbuf = np.empty(n_t)
-        x = np.empty(nx)
-        p = np.empty(pps.shape[1])
-        work = np.empty((5, nx))
-        ring = np.empty(ring_size(d_max, n_t))
-        cs = np.empty(cs0.shape[1])
-        no_x = np.empty((0, nx))
-        no_noise = np.empty(0)
-        tbuf = np.empty(N_TAIL + 1)
-        twork = np.empty((TAIL_WORK, 3))
-        for i in range(lo, hi):
-            for j in range(nx):
-                x[j] = x0s[i, j]
-            for j in range(p.shape[0]):
-                p[j] = pps[i, j]
-            for j in range(cs.shape[0]):
-                cs[j] = cs0[i, j]
-            y0 = y0s[i]
-            _fill_ref(rbuf, roff[min(i, roff.shape[0] - 1)], y0)
-            if keep:
-                yv = y_tr[i]
-                uv = u_tr[i]
-                av = a_tr[i]
-            else:
-                yv = ybuf
-                uv = ubuf_tr
-                av = abuf
-            nz = noise[min(i, noise.shape[0] - 1)] if noise.shape[0] > 0 else no_noise
-            bad[i] = run_nonlinear(kind, cps[i], cs, du_rules, du_lims, a_rules, a_lims,
-                                   p, ts, ds[i], fs[i], n_subs[i], u0s[i], rbuf, nz, force,
-                                   x, work, ring, yv, uv, av, no_x)
-            _finish_run(i, bad[i], t, yv, uv, av, rbuf, mopts, metrics, tail_fraction, tail,
-                        tbuf, twork)
 
 
 def _reference_rows(reference: Reference | ArrayLike, t: FloatArray) -> FloatArray:
@@ -395,8 +216,13 @@ def simulate_batch(
     tail = np.empty((n, N_TAIL))
     bad = np.empty(n, dtype=np.int64)
     mopts = np.array(metric_options(rise, settle_band, settle_band_2))
-    tabs = controller.tables()
-    chunks = _chunks(n)
+    law = LawRows(p=np.ascontiguousarray(cps), s=np.ascontiguousarray(cs0),
+                  tables=tuple(controller.tables()))
+    sig = Signals(t=t, r=roff, noise=nz, shift=True)
+    out = Outputs(y=y_tr, u=u_tr, alpha=a_tr, x=np.empty((0, 1)), x_end=np.empty(0),
+                  mopts=mopts, metrics=metrics, tail_fraction=float(tail_fraction),
+                  tail=tail, bad=bad)
+    loops = kernels(controller.law)
     if isinstance(plants[0], LinearPlant):
         if disturbance is not None:
             raise ParameterError("a load-force disturbance needs the nonlinear plant")
@@ -412,21 +238,19 @@ def simulate_batch(
         lps = np.zeros((n, width))
         for i, row in enumerate(rows):
             lps[i, :row.size] = row
-        _batch_linear(controller.kind, cps, cs0, *tabs, lps, y0s, u0s, t, roff, nz, keep,
-                      y_tr, u_tr, a_tr, mopts, metrics, float(tail_fraction), tail, bad,
-                      chunks)
+        lin = LinearRows(lp=lps, y0=y0s, u0=u0s, x_op=np.zeros(1))
+        run_chunks(loops.linear_chunk, n, law, lin, sig, out)
     else:
         nl = [p for p in plants if isinstance(p, NonlinearPlant)]
         force = profile(disturbance, t, "disturbance")
-        pps = np.vstack([p.packed for p in nl])
-        x0s = np.vstack([p.x0 for p in nl])
         split = [split_delay(float(dv), ts) for dv in delays]
-        ds = np.array([s[0] for s in split], dtype=np.int64)
-        fs = np.array([s[1] for s in split])
-        n_subs = np.array([p.check_steps(ts, t.size) for p in nl], dtype=np.int64)
-        _batch_nonlinear(controller.kind, cps, cs0, *tabs, pps, x0s, y0s, u0s, ds, fs, n_subs, ts,
-                         t, roff, nz, force, keep, y_tr, u_tr, a_tr, mopts, metrics,
-                         float(tail_fraction), tail, bad, chunks)
+        rows_nl = NonlinearRows(
+            p=np.vstack([p.packed for p in nl]), x0=np.vstack([p.x0 for p in nl]), y0=y0s,
+            u0=u0s, d=np.array([s[0] for s in split], dtype=np.int64),
+            f=np.array([s[1] for s in split], dtype=np.float64),
+            n_sub=np.array([p.check_steps(ts, t.size) for p in nl], dtype=np.int64), ts=ts,
+            force=force)
+        run_chunks(loops.nonlinear_chunk, n, law, rows_nl, sig, out)
     return BatchResult(
         metrics=metrics, metric_names=METRIC_NAMES, diverged=bad >= 0, t=t,
         r=roff[0] if roff.shape[0] == 1 else roff, y0=y0s, tail=tail, tail_names=TAIL_NAMES,

@@ -16,10 +16,10 @@ Plants:
   integrated with its RK4 (``rk4_steps``) between samples, the interval split at t_k + f
   so the delayed command switches exactly; the load force F_ext may follow a profile.
 
-:func:`run_linear` and :func:`run_nonlinear` are the compiled single-run loops; :func:`simulate`
-(one run, with plant states) and :func:`fuzzyservo.sim.batch.simulate_batch` (many runs in
-parallel) both call them, and they call :func:`fuzzyservo.control.controller_step`, the same
-function the controllers' per-step ``step()`` uses.
+The compiled loops are :mod:`fuzzyservo.sim.loops`' ``linear_chunk`` and ``nonlinear_chunk``,
+one copy per control law: :func:`simulate` (one run, with plant states) and
+:func:`fuzzyservo.sim.batch.simulate_batch` (many runs in parallel) both call them, and they
+call the law's step, the same function the controllers' per-step ``step()`` uses.
 """
 
 from __future__ import annotations
@@ -28,23 +28,29 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
 
-from .._typing import ArrayLike, FloatArray, IntArray
-from ..control.base import STATE_ALPHA, PackedController, controller_step, controller_tables
+from .._typing import ArrayLike, FloatArray
+from ..control.base import PackedController
 from ..errors import InputError, ParameterError, SimulationDivergedError
-from ..fuzzy.kernels import data_pointer
 from ..plant.nonlinear import (
     N_PARAMS,
-    P_FEXT,
     P_L,
     P_RES,
     STATE_NAMES,
     pack,
-    rk4_steps,
 )
 from ..plant.zoh import check_delay, discretize, split_delay
+from .loops import (
+    LawRows,
+    LinearRows,
+    NonlinearRows,
+    Outputs,
+    Signals,
+    kernels,
+    ring_size,
+    substep_split,
+)
 from .references import (
     Reference,
     check_reference,
@@ -52,6 +58,7 @@ from .references import (
     sample_reference,
 )
 from .result import SimResult
+from .stepinfo import N_METRICS, N_TAIL
 
 __all__ = [
     "DEFAULT_DELAY",
@@ -60,10 +67,7 @@ __all__ = [
     "LinearPlant",
     "NonlinearPlant",
     "Plant",
-    "run_linear",
-    "run_linear_pair",
     "run_loop",
-    "run_nonlinear",
     "check_delay",
     "plant_limits",
     "ring_size",
@@ -279,345 +283,6 @@ def plant_limits(plant: Plant) -> tuple[float | None, float]:
 DEFAULT_DELAY = 0.0
 
 
-@numba.njit(cache=True, nogil=True)
-def ring_size(d: int, n: int) -> int:
-    """Length of the command ring buffer for a delay of ``d`` whole samples in a run of ``n``
-    samples: d + 2, but never more than the run needs (a command delayed past the end of the
-    run never reaches the plant)."""
-    return min(d, n) + 2
-
-
-# The sample step below (controller, record, ring buffer) is written out in run_linear,
-# run_linear_pair (twice, one per run) and run_nonlinear: moving it into one shared
-# inline="always" function cost 25 % of the batched PID rate on the linear plant
-# (benchmarks/closed_loop.py, 30 -> 23 M steps/s).
-@numba.njit(cache=True, nogil=True)
-def _delayed(ubuf: FloatArray, w: int, k: int, d: int, u_init: float) -> tuple[float, float]:
-    """Commands u_{k-d} and u_{k-d-1} from the ring buffer whose slot ``w`` holds u_k
-    (``u_init`` before t_0); no integer division in the loop. The ring holds d + 2 commands
-    (the loops cap d at the run length, :func:`ring_size`)."""
-    n = ubuf.shape[0]
-    j0 = w - d
-    if j0 < 0:
-        j0 += n
-    j1 = j0 - 1
-    if j1 < 0:
-        j1 += n
-    u0 = ubuf[j0] if k - d >= 0 else u_init
-    u1 = ubuf[j1] if k - d - 1 >= 0 else u_init
-    return u0, u1
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _output_n(lp: Any, x: Any, y0: float, n: int) -> float:
-    """y0 + C x of a packed linear plant (pointers ``lp``, ``x``), summed in index order."""
-    o_c = 2 + n * n + 2 * n
-    y = y0
-    for i in range(n):
-        y += lp[o_c + i] * x[i]
-    return y
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _advance_n(lp: Any, x: Any, xn: Any, u0: float, u1: float, n: int) -> None:
-    """x <- Φ x + Γ0 u0 + Γ1 u1 of a packed linear plant (pointers; ``xn`` scratch), each
-    row summed as Γ0 u0 + Γ1 u1 + Φ_i0 x_0 + Φ_i1 x_1 + ... in that order."""
-    o_g0 = 2 + n * n
-    o_g1 = o_g0 + n
-    for i in range(n):
-        acc = lp[o_g0 + i] * u0 + lp[o_g1 + i] * u1
-        row = 2 + i * n
-        for j in range(n):
-            acc += lp[row + j] * x[j]
-        xn[i] = acc
-    for i in range(n):
-        x[i] = xn[i]
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def linear_output(lp: Any, x: Any, y0: float, n: int) -> float:
-    """:func:`_output_n` with the loop unrolled for n <= 8 states (the same sums)."""
-    if n == 1:
-        return _output_n(lp, x, y0, 1)
-    if n == 2:
-        return _output_n(lp, x, y0, 2)
-    if n == 3:
-        return _output_n(lp, x, y0, 3)
-    if n == 4:
-        return _output_n(lp, x, y0, 4)
-    if n == 5:
-        return _output_n(lp, x, y0, 5)
-    if n == 6:
-        return _output_n(lp, x, y0, 6)
-    if n == 7:
-        return _output_n(lp, x, y0, 7)
-    if n == 8:
-        return _output_n(lp, x, y0, 8)
-    return _output_n(lp, x, y0, n)
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def linear_advance(lp: Any, x: Any, xn: Any, u0: float, u1: float, n: int) -> None:
-    """:func:`_advance_n` with the loops unrolled for n <= 8 states (the same sums)."""
-    if n == 1:
-        _advance_n(lp, x, xn, u0, u1, 1)
-    elif n == 2:
-        _advance_n(lp, x, xn, u0, u1, 2)
-    elif n == 3:
-        _advance_n(lp, x, xn, u0, u1, 3)
-    elif n == 4:
-        _advance_n(lp, x, xn, u0, u1, 4)
-    elif n == 5:
-        _advance_n(lp, x, xn, u0, u1, 5)
-    elif n == 6:
-        _advance_n(lp, x, xn, u0, u1, 6)
-    elif n == 7:
-        _advance_n(lp, x, xn, u0, u1, 7)
-    elif n == 8:
-        _advance_n(lp, x, xn, u0, u1, 8)
-    else:
-        _advance_n(lp, x, xn, u0, u1, n)
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def run_linear(
-    kind: int, cp: FloatArray, cs: FloatArray,
-    du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
-    lp: FloatArray, u_op: float, x_op: FloatArray, r: FloatArray, noise: FloatArray,
-    y0: float, x: FloatArray, xn: FloatArray, ubuf: FloatArray,
-    y_out: FloatArray, u_out: FloatArray, a_out: FloatArray, x_out: FloatArray,
-) -> int:
-    """One closed loop on a packed linear plant ``lp`` (see ``LinearPlant.discretize``).
-
-    The plant propagates the deviation ``x`` from its operating point (start value, updated
-    in place) under the input u - ``u_op``; y = ``y0`` + C x; commands before t_0 are
-    ``u_op``; rows of ``x_out`` are the absolute states ``x_op`` + x. ``cs`` (controller
-    state) is updated in place; ``ubuf`` is a ring buffer of :func:`ring_size` commands;
-    ``noise`` is empty or one value per sample; ``x_out`` is (len(r), n) to keep states or
-    (0, n) not to. The plant is not advanced past the last sample. Returns the index of the
-    first sample with a non-finite state, or -1.
-
-    The controller (:func:`~fuzzyservo.control.controller_step`) and the plant's update are
-    inlined, on data pointers (nothing reference-counted per sample); the plant's sums are
-    unrolled for up to 8 states, in the same order as for more.
-    """
-    n = int(lp[0])
-    d = min(int(lp[1]), r.shape[0])  # a command delayed past the run never arrives
-    keep_x = x_out.shape[0] > 0
-    has_noise = noise.shape[0] > 0
-    last = r.shape[0] - 1
-    pp = data_pointer(cp)
-    sp = data_pointer(cs)
-    lpp = data_pointer(lp)
-    xp = data_pointer(x)
-    xnp = data_pointer(xn)
-    du, alpha = controller_tables(du_rules, du_lims, a_rules, a_lims)
-    w = 0
-    for k in range(r.shape[0]):
-        y = linear_output(lpp, xp, y0, n)
-        if keep_x:
-            for i in range(n):
-                x_out[k, i] = x_op[i] + x[i]
-        if not math.isfinite(y):
-            return k
-        if has_noise:
-            y += noise[k]
-        u = controller_step(kind, pp, sp, r[k], y, du, alpha)
-        y_out[k] = y
-        u_out[k] = u
-        a_out[k] = sp[STATE_ALPHA]
-        if k == last:
-            break
-        ubuf[w] = u
-        u0, u1 = _delayed(ubuf, w, k, d, u_op)
-        w += 1
-        if w == ubuf.shape[0]:
-            w = 0
-        linear_advance(lpp, xp, xnp, u0 - u_op, u1 - u_op, n)
-    return -1
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def run_linear_pair(
-    kind: int, cp_a: FloatArray, cs_a: FloatArray, cp_b: FloatArray, cs_b: FloatArray,
-    du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
-    lp_a: FloatArray, lp_b: FloatArray, u_op_a: float, u_op_b: float,
-    r_a: FloatArray, r_b: FloatArray, noise_a: FloatArray, noise_b: FloatArray,
-    y0_a: float, y0_b: float, x_a: FloatArray, xn_a: FloatArray, x_b: FloatArray,
-    xn_b: FloatArray, ubuf_a: FloatArray, ubuf_b: FloatArray,
-    y_a: FloatArray, u_a: FloatArray, al_a: FloatArray,
-    y_b: FloatArray, u_b: FloatArray, al_b: FloatArray,
-) -> tuple[int, int]:
-    """Two runs of :func:`run_linear` (no states kept) in one loop, sample by sample.
-
-    Each run is exactly its :func:`run_linear` (the same functions on its own arrays, in the
-    same order); they only share the loop, so the processor overlaps one run's long chains
-    (the fuzzy evaluation's divisions and sums) with the other's work: about 10 % more
-    samples per second in the batch kernel. ``r_a`` and ``r_b`` have the same length.
-    Returns each run's first non-finite sample or -1; a run that diverged is no longer
-    advanced (its outputs from that sample on are not written).
-    """
-    n_a = int(lp_a[0])
-    n_b = int(lp_b[0])
-    d_a = min(int(lp_a[1]), r_a.shape[0])
-    d_b = min(int(lp_b[1]), r_b.shape[0])
-    noisy_a = noise_a.shape[0] > 0
-    noisy_b = noise_b.shape[0] > 0
-    last = r_a.shape[0] - 1
-    pa = data_pointer(cp_a)
-    sa = data_pointer(cs_a)
-    pb = data_pointer(cp_b)
-    sb = data_pointer(cs_b)
-    la = data_pointer(lp_a)
-    lb = data_pointer(lp_b)
-    xa = data_pointer(x_a)
-    xna = data_pointer(xn_a)
-    xb = data_pointer(x_b)
-    xnb = data_pointer(xn_b)
-    du, alpha = controller_tables(du_rules, du_lims, a_rules, a_lims)
-    bad_a = -1
-    bad_b = -1
-    w_a = 0
-    w_b = 0
-    for k in range(r_a.shape[0]):
-        live_a = bad_a < 0
-        live_b = bad_b < 0
-        ya = 0.0
-        yb = 0.0
-        ua = 0.0
-        ub = 0.0
-        if live_a:
-            ya = linear_output(la, xa, y0_a, n_a)
-            if not math.isfinite(ya):
-                bad_a = k
-                live_a = False
-            elif noisy_a:
-                ya += noise_a[k]
-        if live_b:
-            yb = linear_output(lb, xb, y0_b, n_b)
-            if not math.isfinite(yb):
-                bad_b = k
-                live_b = False
-            elif noisy_b:
-                yb += noise_b[k]
-        if not (live_a or live_b):
-            break
-        if live_a:
-            ua = controller_step(kind, pa, sa, r_a[k], ya, du, alpha)
-            y_a[k] = ya
-            u_a[k] = ua
-            al_a[k] = sa[STATE_ALPHA]
-        if live_b:
-            ub = controller_step(kind, pb, sb, r_b[k], yb, du, alpha)
-            y_b[k] = yb
-            u_b[k] = ub
-            al_b[k] = sb[STATE_ALPHA]
-        if k == last:
-            break
-        if live_a:
-            ubuf_a[w_a] = ua
-            a0, a1 = _delayed(ubuf_a, w_a, k, d_a, u_op_a)
-            w_a += 1
-            if w_a == ubuf_a.shape[0]:
-                w_a = 0
-            linear_advance(la, xa, xna, a0 - u_op_a, a1 - u_op_a, n_a)
-        if live_b:
-            ubuf_b[w_b] = ub
-            b0, b1 = _delayed(ubuf_b, w_b, k, d_b, u_op_b)
-            w_b += 1
-            if w_b == ubuf_b.shape[0]:
-                w_b = 0
-            linear_advance(lb, xb, xnb, b0 - u_op_b, b1 - u_op_b, n_b)
-    return bad_a, bad_b
-
-
-@numba.njit(cache=True, nogil=True)
-def substep_split(n_sub: int, f: float, ts: float) -> tuple[int, int]:
-    """RK4 substeps (n1, n0) before and after the delayed command's switch at t_k + ``f``
-    [s] inside a sample of ``ts`` [s] with ``n_sub`` substeps: n1 = round(n_sub f / ts)
-    (half to even), at least 1 and below n_sub when n_sub > 1; n0 = n_sub - n1, at least 1;
-    n1 = 0 when f = 0. The one rule of the loops and of the exported servo's C."""
-    n1 = 0
-    if f > 0.0:
-        n1 = max(1, int(round(n_sub * f / ts)))
-        if n1 >= n_sub:
-            n1 = n_sub - 1 if n_sub > 1 else 1
-    n0 = max(1, n_sub - n1)
-    return n1, n0
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def run_nonlinear(
-    kind: int, cp: FloatArray, cs: FloatArray,
-    du_rules: IntArray, du_lims: FloatArray, a_rules: IntArray, a_lims: FloatArray,
-    p: FloatArray, ts: float, d: int, f: float, n_sub: int, u_init: float,
-    r: FloatArray, noise: FloatArray, force: FloatArray,
-    x: FloatArray, work: FloatArray, ubuf: FloatArray,
-    y_out: FloatArray, u_out: FloatArray, a_out: FloatArray, x_out: FloatArray,
-) -> int:
-    """One closed loop on the nonlinear plant with packed parameters ``p`` (a private copy:
-    its external-force entry follows ``force`` when that is not empty).
-
-    Delay τ = d ts + f; ``n_sub`` RK4 substeps per sample (split in proportion at f);
-    ``work`` is a (5, N_STATE) scratch array. Other arguments as :func:`run_linear`. The
-    plant's :func:`~fuzzyservo.plant.nonlinear.rk4_steps` gets data pointers, the controller
-    is inlined as in :func:`run_linear`.
-    Returns the index of the first sample whose state is non-finite, or -1.
-    """
-    keep_x = x_out.shape[0] > 0
-    has_noise = noise.shape[0] > 0
-    has_force = force.shape[0] > 0
-    d = min(d, r.shape[0])  # a command delayed past the run never arrives
-    res = p[P_RES]
-    n1, n0 = substep_split(n_sub, f, ts)
-    nx = x.shape[0]
-    last = r.shape[0] - 1
-    pp = data_pointer(cp)
-    sp = data_pointer(cs)
-    du, alpha = controller_tables(du_rules, du_lims, a_rules, a_lims)
-    # the plant's arrays as pointers for the RK4 (a call passes 3 values, not 7 per array)
-    xp = data_pointer(x)
-    plp = data_pointer(p)
-    k1 = data_pointer(work[0])
-    k2 = data_pointer(work[1])
-    k3 = data_pointer(work[2])
-    k4 = data_pointer(work[3])
-    xt = data_pointer(work[4])
-    w = 0
-    for k in range(r.shape[0]):
-        t = k * ts
-        if keep_x:
-            for i in range(nx):
-                x_out[k, i] = x[i]
-        y = x[_S_X]
-        if has_noise:
-            y += noise[k]
-        if res > 0.0:
-            y = res * math.floor(y / res + 0.5)
-        u = controller_step(kind, pp, sp, r[k], y, du, alpha)
-        y_out[k] = y
-        u_out[k] = u
-        a_out[k] = sp[STATE_ALPHA]
-        if k == last:
-            break
-        ubuf[w] = u
-        u0, u1 = _delayed(ubuf, w, k, d, u_init)
-        w += 1
-        if w == ubuf.shape[0]:
-            w = 0
-        if has_force:
-            p[P_FEXT] = force[k]
-        ok = True
-        if f > 0.0:
-            ok = rk4_steps(t, xp, u1, plp, f, n1, k1, k2, k3, k4, xt)
-            ok = ok and rk4_steps(t + f, xp, u0, plp, ts - f, n0, k1, k2, k3, k4, xt)
-        else:
-            ok = rk4_steps(t, xp, u0, plp, ts, n_sub, k1, k2, k3, k4, xt)
-        if not ok:
-            return k + 1
-    return -1
-
-
 #: Most samples one run may have: 1e7 samples of a few signals is already ~1 GB of results.
 MAX_SAMPLES = 10_000_000
 
@@ -681,33 +346,51 @@ def run_loop(controller: PackedController, plant: Plant, r: FloatArray, *, delay
         The plant state became non-finite.
     """
     ts = float(controller.dt)
-    cp = controller.pack()
-    cs = controller.rest_states(cp[None, :], plant.y0, plant.u0)[0]
-    tabs = controller.tables()
+    cp = controller.pack()[None, :]
+    rows = LawRows(p=cp, s=controller.rest_states(cp, plant.y0, plant.u0),
+                   tables=tuple(controller.tables()))
+    loops = kernels(controller.law)
     n = t.size
-    y, u, a = np.empty(n), np.empty(n), np.empty(n)
+    y, u, a = np.empty((1, n)), np.empty((1, n)), np.empty((1, n))
+    sig = Signals(t=t, r=r[None, :], noise=noise[None, :] if noise.size else np.empty((0, 0)),
+                  shift=False)
     if isinstance(plant, LinearPlant):
         if disturbance is not None:
             raise ParameterError("a load-force disturbance needs the nonlinear plant")
-        lp = plant.discretize(ts, delay)
         nx = plant.n_states
-        x = np.zeros(nx)
+        x_end = np.empty(nx)
         xs = np.empty((n, nx))
-        ubuf = np.zeros(ring_size(int(lp[1]), n))
-        bad = run_linear(controller.kind, cp, cs, *tabs, lp, plant.u0, plant.x_op, r, noise,
-                         plant.y0, x, np.empty(nx), ubuf, y, u, a, xs)
-        x = plant.x_op + x
+        out = _outputs(y, u, a, xs, x_end)
+        lp = plant.discretize(ts, delay)
+        lin = LinearRows(lp=lp[None, :], y0=np.array([plant.y0]), u0=np.array([plant.u0]),
+                         x_op=plant.x_op)
+        loops.linear_chunk(0, 1, rows, lin, sig, out)
     else:
         force = profile(disturbance, t, "disturbance")
         d, f = split_delay(delay, ts)
-        x = plant.x0.copy()
-        xs = np.empty((n, x.size))
-        bad = run_nonlinear(controller.kind, cp, cs, *tabs, plant.packed.copy(), ts, d, f,
-                            plant.check_steps(ts, n), plant.u0, r, noise, force, x,
-                            np.empty((5, x.size)), np.zeros(ring_size(d, n)), y, u, a, xs)
+        nx = plant.x0.size
+        x_end = np.empty(nx)
+        xs = np.empty((n, nx))
+        out = _outputs(y, u, a, xs, x_end)
+        nl = NonlinearRows(p=plant.packed[None, :], x0=plant.x0[None, :],
+                           y0=np.array([plant.y0]), u0=np.array([plant.u0]),
+                           d=np.array([d], dtype=np.int64), f=np.array([f]),
+                           n_sub=np.array([plant.check_steps(ts, n)], dtype=np.int64),
+                           ts=ts, force=force)
+        loops.nonlinear_chunk(0, 1, rows, nl, sig, out)
+    bad = int(out.bad[0])
+    x = x_end
     if bad >= 0:
         raise_diverged(bad * ts, x, plant.state_names, what)
-    return RawRun(y=y, u=u, alpha=a, x=xs)
+    return RawRun(y=y[0], u=u[0], alpha=a[0], x=xs)
+
+
+def _outputs(y: FloatArray, u: FloatArray, a: FloatArray, xs: FloatArray,
+             x_end: FloatArray) -> Outputs:
+    """What a single run writes: its traces and states, no metrics."""
+    return Outputs(y=y, u=u, alpha=a, x=xs, x_end=x_end, mopts=np.zeros(4),
+                   metrics=np.empty((0, N_METRICS)), tail_fraction=1.0,
+                   tail=np.empty((0, N_TAIL)), bad=np.empty(1, dtype=np.int64))
 
 
 def simulate(

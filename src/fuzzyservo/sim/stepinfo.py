@@ -20,9 +20,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
+from .._jit import kernel
 from .._typing import FloatArray
 from ..errors import ParameterError
 
@@ -92,7 +92,7 @@ _RISE, _SETTLE, _SETTLE2, _OS, _PEAK, _TPEAK, _ESS = 0, 1, 2, 3, 4, 5, 6
 _IAE, _ISE, _ITAE, _ITSE, _UMAX, _USQ, _UTV = 7, 8, 9, 10, 11, 12, 13
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def step_metrics_core(
     t: FloatArray,
     y: FloatArray,
@@ -265,7 +265,7 @@ _PW_BLOCK = 128
 TAIL_WORK = 64
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _stream_next(mode: int, t: FloatArray, y: FloatArray, k: int, side: int, t_last: float,
                  mean: float, h: float) -> tuple[float, int, int, float]:
     """Next value of a stream and the stream's new state ``(k, side, t_last)``.
@@ -284,7 +284,7 @@ def _stream_next(mode: int, t: FloatArray, y: FloatArray, k: int, side: int, t_l
         k += 1
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _block_stream(mode: int, n: int, t: FloatArray, y: FloatArray, k: int, side: int,
                   t_last: float, mean: float, h: float) -> tuple[float, int, int, float]:
     """numpy's sum of a block of ``n <= 128`` stream values; the sum and the new state."""
@@ -329,7 +329,7 @@ def _block_stream(mode: int, n: int, t: FloatArray, y: FloatArray, k: int, side:
     return res, k, side, t_last
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline=True)
 def _pairwise_stream(mode: int, n: int, t: FloatArray, y: FloatArray, k: int, side: int,
                      t_last: float, mean: float, h: float, work: FloatArray) -> float:
     """Sum of the next ``n`` values of a stream (:func:`_stream_next`) in numpy's pairwise
@@ -356,14 +356,14 @@ def _pairwise_stream(mode: int, n: int, t: FloatArray, y: FloatArray, k: int, si
         size = int(work[d - 1, 0])
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def tail_oscillation_core(t: FloatArray, y: FloatArray, tail_fraction: float,
                           out: FloatArray) -> None:
     """:func:`tail_oscillation_work` with its own work array (one small allocation)."""
     tail_oscillation_work(t, y, tail_fraction, out, np.empty((TAIL_WORK, 3)))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel
 def tail_oscillation_work(t: FloatArray, y: FloatArray, tail_fraction: float,
                           out: FloatArray, work: FloatArray) -> None:
     """Write how ``y`` moves over the last ``tail_fraction`` of the record into ``out``,

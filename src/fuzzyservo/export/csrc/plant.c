@@ -9,8 +9,8 @@
  *
  *   fs_nl_*       fuzzyservo.plant.nonlinear (rhs, rk4_advance_ws and the helpers)
  *   fs_delayed    fuzzyservo.sim.closed_loop._delayed (the command ring buffer)
- *   fs_lin_*      the plant part of fuzzyservo.sim.closed_loop.run_linear
- *   fs_nl_sample  the plant part of fuzzyservo.sim.closed_loop.run_nonlinear
+ *   fs_lin_*      the plant part of fuzzyservo.sim.loops.linear_one
+ *   fs_nl_sample  the plant part of fuzzyservo.sim.loops.nonlinear_one
  *
  * Standard library only (math.h); no heap, no global state: the callers own every array.
  * The functions are static inline so that those a plant kind does not use draw no
@@ -217,7 +217,7 @@ static inline int fs_nl_rk4(double t, double *x, double u, const double *p, doub
 }
 
 /* The measured position [m]: x rounded to the transducer resolution p[RES] (none when 0),
- * as run_nonlinear rounds y (|x / res| must stay below 2^63, as numba's int floor needs). */
+ * as nonlinear_one rounds y (|x / res| must stay below 2^63, as numba's int floor needs). */
 static inline double fs_nl_measure(const double *x, const double *p)
 {
     double y = x[FS_NL_S_X];
@@ -247,7 +247,7 @@ static inline void fs_delayed(const double *ubuf, int nbuf, int w, long long k, 
 }
 
 /* Store the command u_k in the ring (slot *w), fetch the delayed commands, move *w on:
- * the ring step of run_linear and run_nonlinear. */
+ * the ring step of linear_one and nonlinear_one. */
 static inline void fs_ring_push(double *ubuf, int nbuf, int *w, long long k, int d,
                                 double u, double u_init, double *u0, double *u1)
 {
@@ -259,7 +259,7 @@ static inline void fs_ring_push(double *ubuf, int nbuf, int *w, long long k, int
     }
 }
 
-/* run_linear's output: y = y0 + C x, summed in state order [m]. */
+/* linear_one's output: y = y0 + C x, summed in state order [m]. */
 static inline double fs_lin_output(int n, const double *c, double y0, const double *x)
 {
     double y = y0;
@@ -270,7 +270,7 @@ static inline double fs_lin_output(int n, const double *c, double y0, const doub
     return y;
 }
 
-/* One sample of run_linear's plant: command u_k at sample k; the deviation x (n states,
+/* One sample of linear_one's plant: command u_k at sample k; the deviation x (n states,
  * row-major phi n x n) advances to sample k + 1 (x_{k+1} = phi x_k + g0 (u_{k-d} - u_op)
  * + g1 (u_{k-d-1} - u_op)); xn is n doubles of scratch. Returns 0, or 1 when the new state
  * is not finite. */
@@ -300,7 +300,7 @@ static inline int fs_lin_sample(int n, const double *phi, const double *g0, cons
     return bad;
 }
 
-/* One sample of run_nonlinear's plant: command u_k at sample k (t_k = k ts [s]); x advances
+/* One sample of nonlinear_one's plant: command u_k at sample k (t_k = k ts [s]); x advances
  * to t_{k+1} under u_{k-d-1} over [t_k, t_k + f) (n1 substeps) and u_{k-d} over
  * [t_k + f, t_{k+1}) (n0 substeps), or u_{k-d} throughout (n_sub substeps) when f = 0.
  * Returns 0, or 1 when the state became non-finite. */
