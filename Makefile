@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed-stamp
 FLVENV := .venv-fuzzylite
 PIP_QUIET := $(if $(CI),-q,)
 
-.PHONY: all reproduce test test-fast lint bench clean clean-numba oracles crosscheck precompile browser
+.PHONY: all reproduce test test-fast lint bench clean clean-cache oracles crosscheck precompile browser
 
 all: test
 
@@ -60,9 +60,11 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks
 	$(BIN)/mypy src
 
-# The compiled kernels take minutes to compile on a fresh clone (fuzzyservo precompile); once,
-# first, into numba's cache, every test worker and every process a test starts loads them in
-# about a second instead of compiling them again (docs/architecture.md, "Compilation").
+# The compiled kernels take about 40 s to compile on a fresh clone (fuzzyservo precompile, two
+# processes); once, first, into the package's cache (keyed by the sources: an edit compiles
+# afresh what it touches), every test worker and every process a test starts loads them in a
+# fraction of a second instead of compiling them again (docs/architecture.md, "Compiled
+# kernels").
 precompile: $(STAMP)
 	$(BIN)/fuzzyservo precompile
 
@@ -77,10 +79,12 @@ test-fast: lint oracles browser precompile
 bench: browser precompile $(FLVENV)/.installed-stamp
 	$(BIN)/python benchmarks/run_all.py --fuzzylite-python $(FLVENV)/bin/python
 
-# numba's on-disk cache is invalidated by a change of the function's own file only, not of a
-# kernel it calls in another module: clear it after editing a kernel.
-clean-numba:
+# The compiled kernels' cache cannot go stale (its folder is named by a digest of the
+# sources), so nothing needs clearing after an edit; this removes the folders of every version
+# (~/.cache/fuzzyservo, or $$FUZZYSERVO_CACHE_DIR) and numba's caches of the tests and benchmarks.
+clean-cache:
+	rm -rf "$${FUZZYSERVO_CACHE_DIR:-$${XDG_CACHE_HOME:-$$HOME/.cache}/fuzzyservo}"
 	find src tests benchmarks -name '*.nbi' -delete -o -name '*.nbc' -delete
 
-clean: clean-numba
+clean: clean-cache
 	rm -rf $(VENV) $(FLVENV) build *.egg-info src/*.egg-info .pytest_cache .mypy_cache .ruff_cache

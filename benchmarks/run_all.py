@@ -12,8 +12,8 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["fuzzy_engine.py", "fuzzy_files.py", "plant.py", "closed_loop.py", "tuning.py",
-         "csv_write.py", "export_c.py", "sweep.py", "app_latency.py"]
+ORDER = ["compile.py", "fuzzy_engine.py", "fuzzy_files.py", "plant.py", "closed_loop.py",
+         "tuning.py", "csv_write.py", "export_c.py", "sweep.py", "app_latency.py"]
 
 
 def main() -> int:

@@ -33,23 +33,13 @@ from typing import Any
 from . import __version__
 from ._entry import INTERRUPTED
 from ._io import Terminated, terminate_gracefully
+from .commands import COMMANDS as _COMMAND_MODULES
+from .commands import HELP as _HELP
 from .errors import FuzzyServoError
 
-#: Subcommand modules, in the order ``--help`` lists them.
-COMMANDS: tuple[str, ...] = (
-    "simulate",
-    "plot",
-    "metrics",
-    "tune",
-    "linearize",
-    "surface",
-    "fis",
-    "export",
-    "sweep",
-    "reproduce",
-    "precompile",
-    "app",
-)
+#: Subcommands, in the order ``--help`` lists them (``fuzzyservo.commands.COMMANDS`` names
+#: each one's module).
+COMMANDS: tuple[str, ...] = tuple(_COMMAND_MODULES)
 
 #: Exit status after the reader of standard output went away (128 + SIGPIPE).
 EXIT_PIPE = 141
@@ -134,9 +124,14 @@ class _RaisingParser(argparse.ArgumentParser):
         raise UsageError(f"{self.prog}: error: {' '.join(message.split())}")
 
 
-def build_parser(*, raising: bool = False) -> argparse.ArgumentParser:
-    """Build the top-level parser with every registered subcommand (``raising``: usage
-    errors raise :class:`UsageError` instead of ending the process)."""
+def build_parser(*, raising: bool = False, argv: Sequence[str] | None = None
+                 ) -> argparse.ArgumentParser:
+    """Build the top-level parser with every subcommand (``raising``: usage errors raise
+    :class:`UsageError` instead of ending the process).
+
+    With ``argv``, only the subcommand it names (its first word) is built in full and the
+    others are listed by name and help, so a command imports only its own module and
+    ``--help`` and ``--version`` import none (they answer in a few tens of ms)."""
     cls = _RaisingParser if raising else _Parser
     parser = cls(
         prog="fuzzyservo",
@@ -144,9 +139,23 @@ def build_parser(*, raising: bool = False) -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"fuzzyservo {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=cls)
+    wanted = (set(_COMMAND_MODULES.values()) if argv is None
+              else {_COMMAND_MODULES.get(_command_of(argv), "")})
+    done: set[str] = set()
     for name in COMMANDS:
-        importlib.import_module(f"fuzzyservo.commands.{name}").register(sub)
+        module = _COMMAND_MODULES[name]
+        if module in wanted:
+            if module not in done:  # a module may register several (sweep, sweep-report)
+                done.add(module)
+                importlib.import_module(f"fuzzyservo.commands.{module}").register(sub)
+        else:
+            sub.add_parser(name, help=_HELP[name], add_help=False)
     return parser
+
+
+def _command_of(argv: Sequence[str]) -> str:
+    """The subcommand ``argv`` names (its first word that is not an option), or ""."""
+    return next((a for a in argv if not a.startswith("-")), "")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -200,9 +209,10 @@ def _numba_cache_best_effort() -> None:
 
 def _run(argv: Sequence[str] | None) -> int:
     try:
+        words = list(sys.argv[1:] if argv is None else argv)
+        parser = build_parser(argv=words)
+        args = parser.parse_args(words)
         _numba_cache_best_effort()
-        parser = build_parser()
-        args = parser.parse_args(argv)
         args.argv = list(sys.argv[1:] if argv is None else argv)  # recorded by some outputs
         status: int = args.handler(args)
         sys.stdout.flush()

@@ -216,7 +216,7 @@ def test_ctrl_c_swallowed_by_a_finalizer_still_stops_the_run(
             time.sleep(0.001)
         return 0
 
-    def parser() -> argparse.ArgumentParser:
+    def parser(**_: object) -> argparse.ArgumentParser:
         p = argparse.ArgumentParser()
         p.set_defaults(handler=handler)
         return p

@@ -118,7 +118,7 @@ def test_our_error_wrapped_by_a_library_is_printed_as_itself(
                                ) from inner
     except RuntimeError as wrapped:
         exc = wrapped
-    monkeypatch.setattr(cli, "build_parser", lambda: _handler_raising(exc))
+    monkeypatch.setattr(cli, "build_parser", lambda **_: _handler_raising(exc))
     assert main([]) == 2
     assert capsys.readouterr().err == ("fuzzyservo: error: --ts must be at least 1e-06 s, "
                                        "got 1e-09\n")
@@ -126,14 +126,14 @@ def test_our_error_wrapped_by_a_library_is_printed_as_itself(
 
 def test_running_out_of_memory_is_one_line(monkeypatch: pytest.MonkeyPatch,
                                            capsys: pytest.CaptureFixture[str]) -> None:
-    monkeypatch.setattr(cli, "build_parser", lambda: _handler_raising(MemoryError()))
+    monkeypatch.setattr(cli, "build_parser", lambda **_: _handler_raising(MemoryError()))
     assert main([]) == 2
     _one_line(capsys, "out of memory")
 
 
 def test_a_bug_still_shows_its_traceback(monkeypatch: pytest.MonkeyPatch) -> None:
     """Only our own errors are turned into one line; a bug is not hidden."""
-    monkeypatch.setattr(cli, "build_parser", lambda: _handler_raising(ZeroDivisionError()))
+    monkeypatch.setattr(cli, "build_parser", lambda **_: _handler_raising(ZeroDivisionError()))
     with pytest.raises(ZeroDivisionError):
         main([])
 

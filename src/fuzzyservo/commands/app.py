@@ -8,6 +8,7 @@ from typing import Any
 
 from ..errors import InputError, ParameterError
 from ..paper.published import SET_NAMES
+from . import HELP
 
 __all__ = ["DEFAULT_PORT", "register", "run"]
 
@@ -18,7 +19,7 @@ DEFAULT_PORT = 5006
 def register(subparsers: Any) -> None:
     """Add the ``app`` subcommand to ``subparsers`` and set its handler."""
     p = subparsers.add_parser(
-        "app", help="a local browser page: tune by looking, the response follows the sliders",
+        "app", help=HELP["app"],
         description=(
             "Serve a page on this machine where the controller's gains, the plant and the "
             "reference are sliders and the step response, command and alpha are redrawn as "

@@ -17,6 +17,7 @@ from ..export.targets import (
     generate_c,
 )
 from ..registry import DEFAULT_SUBSTEP, build_plant
+from . import HELP
 from ._plantargs import add_plant_arguments, params_from_args
 from ._runargs import (
     OPTION_FLAGS,
@@ -55,7 +56,7 @@ def register(subparsers: Any) -> None:
     """Add the ``export`` subcommand group to ``subparsers`` and set its handlers."""
     names = export_target_names()
     parser = subparsers.add_parser(
-        "export", help="the controllers as C99 code and FMUs, the servo as an FMU",
+        "export", help=HELP["export"],
         description=(
             "Take a controller to hardware: C99 code with no dependency beyond the C "
             "standard library (export c), or an FMI 2.0 co-simulation FMU of a controller or "

@@ -51,6 +51,7 @@ from ..formats import FORMATS, dumps, format_of, read_system
 from ..fuzzy.general import evaluate
 from ..fuzzy.system import SHAPES, FuzzySystem, Term, Variable
 from ..plots.runs import FIGURE_FORMATS
+from . import HELP
 
 __all__ = [
     "MAX_GRID",
@@ -93,7 +94,7 @@ def register(subparsers: Any) -> None:
     """Add the ``fis`` subcommand group to ``subparsers`` and set its handlers."""
     parser = subparsers.add_parser(
         "fis",
-        help=f"evaluate, convert, describe and draw fuzzy-system files ({_EXTS})",
+        help=HELP["fis"],
         description=(
             "Fuzzy systems from MATLAB .fis, IEC 61131-7 FCL (.fcl) and fuzzylite FLL (.fll) "
             "files, the format named by the file's extension: evaluate them exactly (eval), "

@@ -18,6 +18,7 @@ import numpy as np
 from .._io import strict_json
 from ..errors import ParameterError
 from ..plant import ServoParams, linearize
+from . import HELP
 from ._plantargs import add_plant_arguments, params_from_args
 
 __all__ = ["register", "run", "summary"]
@@ -30,7 +31,7 @@ def register(subparsers: Any) -> None:
     """Add the ``linearize`` subcommand to ``subparsers`` and set its handler."""
     parser = subparsers.add_parser(
         "linearize",
-        help="linearise the servo: omega_0, damping, gains, eigenvalues",
+        help=HELP["linearize"],
         description=(
             "Linearise the nonlinear servo model at rest at a stroke position (numerical "
             "Jacobian around the trimmed equilibrium; Coulomb friction left out) and print "

@@ -17,6 +17,7 @@ from typing import Any
 from .._io import strict_json
 from ..analysis.step_metrics import step_metrics
 from ..files import read_run_csv
+from . import HELP
 
 __all__ = ["REQUIRED_COLUMNS", "UNITS", "print_metrics", "register", "run"]
 
@@ -46,7 +47,7 @@ def register(subparsers: Any) -> None:
     """Add the ``metrics`` subcommand to ``subparsers`` and set its handler."""
     parser = subparsers.add_parser(
         "metrics",
-        help="step-response metrics of a run CSV",
+        help=HELP["metrics"],
         description=(
             "Print rise time (10-90 %), settling times (2 % and 5 % bands), overshoot, peak, "
             "steady-state error, IAE, ISE, ITAE, ITSE and command metrics of a CSV written by "

@@ -16,6 +16,7 @@ from .._io import check_output_path
 from ..errors import InputError
 from ..files import read_run_csv
 from ..plots.runs import FIGURE_FORMATS, runs_figure, save_figure
+from . import HELP
 
 __all__ = ["register", "run"]
 
@@ -24,7 +25,7 @@ def register(subparsers: Any) -> None:
     """Add the ``plot`` subcommand to ``subparsers`` and set its handler."""
     parser = subparsers.add_parser(
         "plot",
-        help="plot run CSVs: position and reference, command, alpha",
+        help=HELP["plot"],
         description=(
             "Overlay runs written by 'fuzzyservo simulate': piston position against the "
             "reference [mm], the valve command [% of rated input] and the self-tuning factor "

@@ -1,91 +1,177 @@
-"""``fuzzyservo precompile``: compile the closed-loop kernels once, into numba's on-disk cache.
+"""``fuzzyservo precompile``: compile every closed-loop kernel once, into the package's cache.
 
-The kernels are compiled on their first call and cached next to their sources
-(``cache=True``). A cold compile takes about seven minutes of CPU (the controller laws and the
-fuzzy evaluators are inlined into every loop so the loops run fast), and a fresh install pays
-it in every process that starts before the cache is written: a sweep's worker processes, a
-test suite's workers, the processes a test starts. ``fuzzyservo precompile`` pays it once,
-in two processes (the linear plant's loops in one, the nonlinear plant's and the per-step
-API in the other), so every process started afterwards loads the compiled code in about a
-second. ``make test``, ``make reproduce`` and ``make bench`` run it first; a container image
-or a Dask worker's environment can run it at build time.
+The kernels compile on their first call and are cached in a folder keyed by the package's
+sources (:func:`fuzzyservo._jit.cache_dir`), so a process started afterwards loads them in a
+fraction of a second. A first ``simulate`` compiles only what it runs (a few seconds, with a
+notice on standard error); ``fuzzyservo precompile`` compiles everything at once, in two
+processes: for each control law of the registry (and the fuzzy PI's variant for general fuzzy
+systems, and the open loop's command schedule) its loop on the linear plant, its loop on the
+nonlinear plant (single runs and batches share each) and its per-step API. ``make test``,
+``make reproduce`` and ``make bench`` run it first; a container image or a Dask worker's
+environment can run it at build time.
 
-It runs each closed-loop entry point once, briefly, with the argument types the package
-passes (C-contiguous float64 and int64 arrays): the single-run loops (``simulate``, with a
-delay and noise), the batch kernels (``simulate_batch``: with and without traces, per-run
-plants, delays, noise rows and reference rows; on the linear plant the two-run loop too) and
-the per-step API (``controller.step``). The fuzzy evaluators the loops call are compiled with
-them; evaluators used only outside the loops (surfaces, batch evaluation of a file's system)
-compile on first use.
+Each job runs its entry points briefly with the argument types the package passes (simulate
+with a delay and noise, simulate_batch with and without traces, per-run plants, delays and
+noise rows), so what it compiles is what the package calls. Evaluators used only outside the
+loops (surfaces, batch evaluation of a file's system) compile on first use.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
+import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass
 from multiprocessing import get_context
 from typing import Any
 
 from ..errors import ParameterError
+from . import HELP
 
-__all__ = ["GROUPS", "compile_group", "precompile", "register", "run"]
+__all__ = ["Job", "controllers", "jobs", "precompile", "register", "run", "run_job"]
 
-#: What each process compiles: (plants whose loops it runs, whether it compiles the per-step
-#: API). The linear loops take about twice as long to compile as the nonlinear one, so the
-#: per-step API goes with the nonlinear plant.
-GROUPS: tuple[tuple[tuple[str, ...], bool], ...] = ((("linear", "small-signal"), False),
-                                                     (("nonlinear",), True))
+#: The entry points a job compiles: the closed loop on one plant, or the per-step API.
+TARGETS: tuple[str, ...] = ("linear", "nonlinear", "per-step")
 
 
-def compile_group(plants: tuple[str, ...], per_step: bool = False) -> float:
-    """Run the closed loops of ``plants`` once (short runs) with every registered controller
-    and, if ``per_step``, their per-step API; return the seconds it took.
+@dataclass(frozen=True, slots=True)
+class Job:
+    """One law's kernels for one target.
 
-    The controllers are the registry's templates (their required gains 0): the kernels are
-    compiled for argument types, not values, and a controller kind is a runtime argument, so
-    the first kind compiles the loops and the others run them from memory."""
+    Attributes
+    ----------
+    law : str
+        The law's controller as :func:`controllers` names it (a registry name, ``general``
+        for the fuzzy PI on general systems, ``command`` for the open loop).
+    target : str
+        One of :data:`TARGETS`.
+    title : str
+        What it is, for the progress lines.
+    seconds : float
+        About how long it compiles on one core [s] (for the order and the estimate).
+    """
+
+    law: str
+    target: str
+    title: str
+    seconds: float
+
+
+@functools.cache
+def controllers() -> dict[str, tuple[Any, str]]:
+    """One controller per distinct compiled law: ``{name: (controller, title)}``; the
+    registry's kinds in order (the first kind of each law), then the fuzzy PI on general
+    systems (the paper's systems read from the shipped .fis files) and the command schedule."""
+    from importlib import resources
+
+    from ..control.command import CommandSchedule
+    from ..formats.io import read_system
+    from ..fuzzy.loop import loop_system
+    from ..registry import controller_kind, controller_names
+
+    ts = 1e-3
+    out: dict[str, tuple[Any, str]] = {}
+    seen: set[str] = set()
+    for name in controller_names():
+        kind = controller_kind(name)
+        ctl = kind.template(dt=ts)
+        if ctl.law.key not in seen:
+            seen.add(ctl.law.key)
+            out[name] = (ctl, ctl.law.title)
+    data = resources.files("fuzzyservo") / "data" / "systems"
+    systems = {role: loop_system(read_system(str(data / f"paper-{role}.fis")),
+                                 source=f"paper-{role}.fis") for role in ("du", "alpha")}
+    for name in controller_names():
+        kind = controller_kind(name)
+        if kind.systems:
+            ctl = kind.template(dt=ts, systems={r: systems[r] for r in kind.systems})
+            if ctl.law.key not in seen:
+                seen.add(ctl.law.key)
+                out["general"] = (ctl, ctl.law.title)
+    cmd = CommandSchedule(dt=ts)
+    if cmd.law.key not in seen:
+        out["command"] = (cmd, "the open loop's command schedule")
+    return out
+
+
+#: Rough compile seconds of one target on one core (the order of the jobs: longest first).
+_SECONDS = {"linear": 10.0, "nonlinear": 7.0, "per-step": 2.0}
+
+
+def jobs() -> list[Job]:
+    """Every job, longest first: each law's closed loops on both plants and its per-step API
+    (the command schedule has no per-step API a user calls)."""
+    out = []
+    for name, (_ctl, title) in controllers().items():
+        for target in TARGETS:
+            if name == "command" and target == "per-step":
+                continue
+            scale = 1.0
+            if name == "general":  # the general fuzzy evaluator: about 20 s, once
+                scale = 12.0 if target == "per-step" else 1.2
+            what = ("the per-step API" if target == "per-step"
+                    else f"the closed loop on the {target} plant")
+            out.append(Job(name, target, f"{what} for {title}", _SECONDS[target] * scale))
+    # longest first; the general variant's per-step API (which compiles the general fuzzy
+    # evaluator, see precompile) at the front
+    return sorted(out, key=lambda j: (not (j.law == "general" and j.target == "per-step"),
+                                      -j.seconds))
+
+
+def run_job(law: str, target: str) -> float:
+    """Compile (or load) one job's kernels by running them briefly; return the seconds."""
     import numpy as np
 
     from ..paper.published import paper_params
-    from ..registry import build_plant, controller_kind, controller_names
-    from ..sim import Step, simulate, simulate_batch
+    from ..registry import build_plant
+    from ..sim import Step, simulate, simulate_batch, simulate_open_loop
 
     t0 = time.perf_counter()
+    ctl, _title = controllers()[law]
+    if target == "per-step":
+        ctl.step(ctl.initial_state(), 0.01, 0.0)
+        return time.perf_counter() - t0
     params = paper_params()
-    ts = 1e-3
-    ctls = [controller_kind(name).template(dt=ts) for name in controller_names()]
+    plants = ("linear", "small-signal") if target == "linear" else ("nonlinear",)
     for name in plants:
         plant = build_plant(name, params)
-        for ctl in ctls:
-            simulate(ctl, plant, Step(0.01), duration=0.02, delay=0.0015, noise_std=1e-6,
-                     rng=np.random.default_rng(0))
-            for keep in (False, True):  # three runs: a pair and one alone
-                simulate_batch(ctl, plant=plant, reference=Step(0.01), duration=0.02,
-                               delay=[0.0, 0.0015, 0.003], noise=np.zeros((3, 21)),
-                               keep_traces=keep)
-            simulate_batch(ctl, plant=[plant] * 3, reference=np.zeros((3, 21)),
-                           duration=0.02)
-    if per_step:
-        for ctl in ctls:
-            ctl.step(ctl.initial_state(), 0.01, 0.0)
+        if law == "command":
+            simulate_open_loop(plant, 0.1, duration=0.02)
+            continue
+        simulate(ctl, plant, Step(0.01), duration=0.02, delay=0.0015, noise_std=1e-6,
+                 rng=np.random.default_rng(0))
+        for keep in (False, True):  # three runs: a pair and one alone
+            simulate_batch(ctl, plant=plant, reference=Step(0.01), duration=0.02,
+                           delay=[0.0, 0.0015, 0.003], noise=np.zeros((3, 21)),
+                           keep_traces=keep)
+        simulate_batch(ctl, plant=[plant] * 3, reference=np.zeros((3, 21)), duration=0.02)
     return time.perf_counter() - t0
 
 
-def precompile(processes: int = 2) -> list[tuple[str, float]]:
-    """Compile the closed-loop kernels into numba's cache.
+def _worker_init() -> None:
+    os.environ["FUZZYSERVO_COMPILE_NOTICE"] = "0"  # precompile reports for its workers
+
+
+def precompile(processes: int = 2,
+               progress: Callable[[int, int, Job, float, float], None] | None = None
+               ) -> list[tuple[Job, float]]:
+    """Compile every closed-loop kernel into the package's cache.
 
     Parameters
     ----------
     processes : int
-        1: everything in this process, one group after the other; 2: the groups of
-        :data:`GROUPS` in two processes at once.
+        1: every job in this process, one after the other; 2: in two processes at once.
+    progress : callable, optional
+        ``progress(done, total, job, seconds, elapsed)`` after each job.
 
     Returns
     -------
-    list of (str, float)
-        Each group's description and the seconds it took [s].
+    list of (Job, float)
+        Each job and the seconds it took [s], in the order they ended.
 
     Raises
     ------
@@ -94,39 +180,88 @@ def precompile(processes: int = 2) -> list[tuple[str, float]]:
     """
     if processes not in (1, 2):
         raise ParameterError(f"--processes must be 1 or 2, got {processes!r}")
-    names = [", ".join(plants) + (" plant loops" + (" and the per-step API" if step else ""))
-             for plants, step in GROUPS]
+    todo = jobs()
+    done: list[tuple[Job, float]] = []
+    t0 = time.perf_counter()
+
+    def report(job: Job, secs: float) -> None:
+        done.append((job, secs))
+        if progress is not None:
+            progress(len(done), len(todo), job, secs, time.perf_counter() - t0)
+
     if processes == 1:
-        secs = [compile_group(*g) for g in GROUPS]
-    else:
-        with ProcessPoolExecutor(max_workers=len(GROUPS),
-                                 mp_context=get_context("spawn")) as pool:
-            secs = list(pool.map(compile_group, *zip(*GROUPS, strict=True)))
-    return list(zip(names, secs, strict=True))
+        before = os.environ.get("FUZZYSERVO_COMPILE_NOTICE")
+        os.environ["FUZZYSERVO_COMPILE_NOTICE"] = "0"  # precompile reports the jobs itself
+        try:
+            for job in todo:
+                report(job, run_job(job.law, job.target))
+        finally:
+            if before is None:
+                del os.environ["FUZZYSERVO_COMPILE_NOTICE"]
+            else:
+                os.environ["FUZZYSERVO_COMPILE_NOTICE"] = before
+        return done
+    # the general fuzzy evaluator is most of the compile of the general variant's kernels:
+    # its per-step API compiles it first, then its loops load it (not compile it twice)
+    first = [j for j in todo if not (j.law == "general" and j.target != "per-step")]
+    later = [j for j in todo if j not in first]
+    with ProcessPoolExecutor(max_workers=processes, mp_context=get_context("spawn"),
+                             initializer=_worker_init) as pool:
+        futures = {pool.submit(run_job, j.law, j.target): j for j in first}
+        pending = set(futures)
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in sorted(finished, key=lambda f: todo.index(futures[f])):
+                job = futures[fut]
+                report(job, fut.result())
+                if job.law == "general" and job.target == "per-step":
+                    for j in later:
+                        f = pool.submit(run_job, j.law, j.target)
+                        futures[f] = j
+                        pending.add(f)
+    return done
 
 
 def register(subparsers: Any) -> None:
     """Add the ``precompile`` subcommand to ``subparsers`` and set its handler."""
     parser = subparsers.add_parser(
         "precompile",
-        help="compile the closed-loop kernels once, into numba's cache",
+        help=HELP["precompile"],
         description=(
-            "Compile the closed-loop kernels into numba's on-disk cache, so that every "
+            "Compile every closed-loop kernel (each control law on both plants, single runs "
+            "and batches, and the per-step API) into the package's cache, so that every "
             "process started afterwards (a sweep's workers, Dask workers, test workers) loads "
-            "them in about a second instead of compiling them for minutes. With the cache "
-            "warm it returns in a few seconds."
+            "them in a fraction of a second. With the cache warm it returns in a few seconds."
         ),
     )
     parser.add_argument("--processes", type=int, default=2, metavar="N",
-                        help="1 or 2 processes (default 2: linear and nonlinear loops at once)")
+                        help="1 or 2 processes (default 2)")
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``fuzzyservo precompile``."""
+    from .._jit import cache_dir
+
+    if args.processes not in (1, 2):
+        raise ParameterError(f"--processes must be 1 or 2, got {args.processes!r}")
+    todo = jobs()
+    est = sum(j.seconds for j in todo) / args.processes
+    print(f"precompile: {len(todo)} jobs in {args.processes} process(es) into {cache_dir()} "
+          f"(once per install; about {est:.0f} s when the cache is empty, seconds when warm)",
+          file=sys.stderr, flush=True)
+
+    est_done = [0.0]
+
+    def progress(n: int, total: int, job: Job, secs: float, elapsed: float) -> None:
+        est_done[0] += job.seconds  # the rate so far, in estimated seconds per second
+        left = elapsed * (sum(j.seconds for j in todo) - est_done[0]) / est_done[0]
+        eta = f", about {left:.0f} s left" if n < total and elapsed > 5 else ""
+        print(f"precompile: [{n}/{total}] {job.title} in {secs:.1f} s{eta}", file=sys.stderr,
+              flush=True)
+
     t0 = time.perf_counter()
-    for name, secs in precompile(args.processes):
-        print(f"precompile: {name} in {secs:.0f} s", file=sys.stderr)
-    print(f"precompile: done in {time.perf_counter() - t0:.0f} s (numba's cache, next to the "
-          f"sources)", file=sys.stderr)
+    precompile(args.processes, progress)
+    print(f"precompile: done in {time.perf_counter() - t0:.0f} s ({cache_dir()})",
+          file=sys.stderr)
     return 0

@@ -22,6 +22,7 @@ from .. import __version__
 from ..errors import InputError, OutputError, ParameterError
 from ..study.paper_study import StudyConfig
 from ..study.runner import PLANTS, reproduce
+from . import HELP
 from ._plantargs import add_plant_arguments, params_from_args, params_given, set_name
 from ._runargs import add_system_arguments, systems_from_args, systems_record
 
@@ -36,7 +37,7 @@ def register(subparsers: Any) -> None:
     """Add the ``reproduce`` subcommand to ``subparsers`` and set its handler."""
     parser = subparsers.add_parser(
         "reproduce",
-        help="reproduce the paper's study (Figs. 3-8, metrics, claims, report)",
+        help=HELP["reproduce"],
         description="Reproduce Aly et al. (2012) on the linear and nonlinear plant: figures "
                     "(PNG, SVG), traces (CSV), metrics.csv, claims.json and report.html.",
     )

@@ -35,6 +35,7 @@ from ..plots.runs import FIGURE_FORMATS, runs_figure, save_figure
 from ..registry import DEFAULT_SUBSTEP, build_plant, controller_kind
 from ..sim import parse_reference, simulate, simulate_open_loop
 from ..sim.open_loop import MAX_RHS_EVALUATIONS
+from . import HELP
 from ._plantargs import add_plant_arguments, params_from_args, params_given
 from ._runargs import (
     ControllerChoice,
@@ -55,7 +56,7 @@ def register(subparsers: Any) -> None:
     """Add the ``simulate`` subcommand to ``subparsers`` and set its handler."""
     parser = subparsers.add_parser(
         "simulate",
-        help="simulate the servo in closed or open loop; CSV, metrics, figure",
+        help=HELP["simulate"],
         description=(
             "Simulate the servo under a controller (--controller/--gains) or a constant "
             "command (--open-loop) and write the samples as CSV (--out), print the step "

@@ -42,6 +42,7 @@ from ..fuzzy.system import FuzzySystem
 from ..paper import alpha_system, du_system
 from ..plots.figures import membership_data, render_memberships, render_surface, surface_data
 from ..plots.runs import FIGURE_FORMATS
+from . import HELP
 
 __all__ = ["read_points_csv", "register", "run", "write_values_csv"]
 
@@ -53,8 +54,7 @@ def register(subparsers: Any) -> None:
     """Add the ``surface`` subcommand to ``subparsers`` and set its handler."""
     parser = subparsers.add_parser(
         "surface",
-        help="evaluate the paper's du or alpha fuzzy system, or a two-input fuzzy-system "
-             "file, on points or a grid",
+        help=HELP["surface"],
         description=(
             "Evaluate the paper's fuzzy system (du: Fig. 3a, alpha: Fig. 3b; exact centroid) "
             "or the first output of a two-input system in a .fis, .fcl or .fll file, exactly, "

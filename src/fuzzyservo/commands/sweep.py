@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError
+from . import HELP
 
 __all__ = ["example_spec", "register"]
 
@@ -32,7 +33,7 @@ def example_spec() -> str:
 def register(subparsers: Any) -> None:
     """Add the ``sweep`` and ``sweep-report`` subcommands."""
     p = subparsers.add_parser(
-        "sweep", help="Monte Carlo and grid sweeps of controllers over plant variations",
+        "sweep", help=HELP["sweep"],
         description=(
             "Run every controller of SPEC.toml on every point of its variations (grids and "
             "random draws of any plant parameter, the delay, the reference amplitude, the load "
@@ -63,7 +64,7 @@ def register(subparsers: Any) -> None:
     p.set_defaults(handler=_run_sweep)
 
     r = subparsers.add_parser(
-        "sweep-report", help="offline HTML report of a sweep",
+        "sweep-report", help=HELP["sweep-report"],
         description=("Write the report of a sweep folder: per controller the distributions of "
                      "the metrics, the failure rates, robustness maps over two varied "
                      "quantities and the worst runs, each with the fuzzyservo simulate command "

@@ -62,6 +62,7 @@ from ..errors import ParameterError
 from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gains_toml
 from ..plant import ServoParams
 from ..registry import controller_names
+from . import HELP
 from ._plantargs import (
     add_plant_arguments,
     overrides_from_args,
@@ -91,7 +92,7 @@ RUN_DEFAULTS: dict[str, Any] = {"plant": "linear", "step": 0.1, "duration": 10.0
 def register(subparsers: Any) -> None:
     """Add the ``tune`` subcommand."""
     p = subparsers.add_parser(
-        "tune", help="tune a controller by step-response search",
+        "tune", help=HELP["tune"],
         description="Tune the gains of a controller (P, PI, PID, 2-DOF PID, fuzzy PI, "
                     "self-tuning fuzzy PI) on a plant model by differential evolution over "
                     "the batched simulator, and write them to a gains file (TOML) that "
