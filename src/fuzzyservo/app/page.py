@@ -43,6 +43,7 @@ from .latest import Latest
 from .settings import (
     OPTION_CHOICES,
     PHYSICAL,
+    WARMED,
     PageRun,
     PageSettings,
     default_gains,
@@ -51,7 +52,7 @@ from .settings import (
     shift,
 )
 
-__all__ = ["MAX_PINS", "PIN_COLOURS", "ServoPage", "gain_range"]
+__all__ = ["MAX_PINS", "PIN_COLOURS", "ServoPage", "gain_range", "pin_colour"]
 
 #: Runs that can be pinned for comparison.
 MAX_PINS = 4
@@ -67,6 +68,21 @@ PIN_COLOURS: dict[str, str] = {
     "fpi": CONTROLLER_COLOURS["fpi"],
     "stfpi": CONTROLLER_COLOURS["stfpi"],
 }
+
+#: Colours of pinned runs of kinds without a colour of their own (registered later, e.g. by
+#: a user's module): Bokeh's Category10 after the study's, by the kind's registry position.
+_MORE_COLOURS = ("#17becf", "#bcbd22", "#7f7f7f", "#e377c2", "#8c564b", "#9467bd")
+
+
+def pin_colour(controller: str) -> str:
+    """The colour of a pinned run of ``controller``: :data:`PIN_COLOURS`, or for a kind
+    registered without one a colour by its position in the registry."""
+    if controller in PIN_COLOURS:
+        return PIN_COLOURS[controller]
+    names = [n for n in controller_names() if n not in PIN_COLOURS]
+    i = names.index(controller) if controller in names else 0
+    return _MORE_COLOURS[i % len(_MORE_COLOURS)]
+
 
 #: Line styles of the second, third and fourth pinned run of one controller.
 _DASHES = ("solid", "dashed", "dotted", "dashdot")
@@ -235,6 +251,10 @@ class ServoPage:
         for w in self.view.select(pn.widgets.Widget):
             _prompt(w)
         self._rebuild_gains()
+        if not WARMED.is_set():
+            self.w_status.object = (
+                "warming up: compiling the simulation kernels (once per install, then they "
+                "load in a fraction of a second); the first run follows in a few seconds")
         self.submit()
 
     # ------------------------------------------------------------------ inputs
@@ -608,7 +628,7 @@ class ServoPage:
             self.w_error.visible = True
             return
         s = self.current.settings
-        colour = PIN_COLOURS[s.controller]
+        colour = pin_colour(s.controller)
         used = {p.dash for p in self.pins if p.run.settings.controller == s.controller}
         dash = next((d for d in _DASHES if d not in used), _DASHES[0])
         gains = ", ".join(f"{k}={v:.4g}" for k, v in s.gains)

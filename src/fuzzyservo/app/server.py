@@ -48,24 +48,26 @@ def serve(*, port: int, host: str = "127.0.0.1", param_set: str = "paper",
     ready : callable, optional
         Called with the page's URL once the server listens.
     """
+    local = host in LOCAL_HOSTS
+    shown = "127.0.0.1" if host in ("127.0.0.1", "localhost") else host
+    url = f"http://{shown if ':' not in shown else f'[{shown}]'}:{port}/"
+    print(f"fuzzyservo app: starting {url}", flush=True)
+
     import panel as pn
 
     from ..paper import named_set
     from .page import ServoPage
-    from .settings import PageSettings, default_gains, run_page
+    from .settings import warm_up
 
     named_set(param_set)  # a bad name fails here, in one line
-    # compile (or load from numba's cache) the loops before the first page asks for a run
-    for plant in ("linear", "nonlinear"):
-        run_page(PageSettings(plant=plant, gains=default_gains("stfpi", plant)))
+    # compile (or load from the cache) the loops beside the server: the page serves at once
+    # and says it is warming up until its first run can be made (a cold cache: seconds)
+    threading.Thread(target=warm_up, name="fuzzyservo-warm-up", daemon=True).start()
     folder = workdir or Path(tempfile.mkdtemp(prefix="fuzzyservo-app-"))
 
     def page() -> Any:
         return ServoPage(param_set=param_set, workdir=folder).view
 
-    local = host in LOCAL_HOSTS
-    shown = "127.0.0.1" if host in ("127.0.0.1", "localhost") else host
-    url = f"http://{shown if ':' not in shown else f'[{shown}]'}:{port}/"
     origins = [f"127.0.0.1:{port}", f"localhost:{port}"] if local else ["*"]
     server = pn.serve({"/": page}, port=port, address=host, websocket_origin=origins,
                       show=False, start=False, title="fuzzyservo: tune by looking",

@@ -16,6 +16,7 @@ from __future__ import annotations
 import functools
 import math
 import shlex
+import threading
 import time
 from dataclasses import dataclass, field, replace
 from decimal import Decimal
@@ -26,7 +27,7 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import FuzzyServoError, InputError
-from ..registry import DEFAULT_SUBSTEP, controller_kind
+from ..registry import DEFAULT_SUBSTEP, controller_kind, controller_names
 
 __all__ = [
     "MAX_PAGE_SAMPLES",
@@ -269,13 +270,36 @@ def run_page(settings: PageSettings) -> PageRun:
                    seconds=time.perf_counter() - started, result=res)
 
 
-@functools.cache
+#: Set once the page's loops are compiled (or loaded from the cache): :func:`warm_up`.
+WARMED = threading.Event()
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) the loops the page runs first: the self-tuning fuzzy
+    PI on the linear plant (the page's first run), then on the nonlinear plant; sets
+    :data:`WARMED` after the first. ``fuzzyservo app`` runs it in a thread while the server
+    already serves, and the page says it is warming up until it is done."""
+    try:
+        for plant in ("linear", "nonlinear"):
+            run_page(PageSettings(plant=plant, gains=default_gains("stfpi", plant)))
+            WARMED.set()
+    finally:
+        WARMED.set()  # a failed warm-up leaves the page's own run to report the error
+
+
 def _parser() -> Any:
-    """The CLI's parser, raising on a usage error; built once (8 ms), as parsing does not
-    change it."""
+    """The CLI's parser, raising on a usage error; built once per set of registered
+    controllers (8 ms), as parsing does not change it (a controller registered later, e.g.
+    by a user's module, gets a parser that offers it)."""
+    return _parser_for(controller_names())
+
+
+@functools.cache
+def _parser_for(names: tuple[str, ...]) -> Any:
     from ..cli import build_parser
 
-    return build_parser(raising=True)
+    del names  # the cache key: the parser offers the registry's names as they are now
+    return build_parser(raising=True, argv=["simulate"])
 
 
 def error_line(exc: BaseException) -> str:

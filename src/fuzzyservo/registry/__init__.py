@@ -14,6 +14,8 @@ from .controllers import (
     controller_kind,
     controller_names,
     default_systems,
+    register_controller,
+    unregister_controller,
 )
 from .plants import DEFAULT_SUBSTEP, PLANTS, PlantKind, build_plant, plant_kind, plant_names
 
@@ -31,4 +33,6 @@ __all__ = [
     "default_systems",
     "plant_kind",
     "plant_names",
+    "register_controller",
+    "unregister_controller",
 ]

@@ -47,6 +47,8 @@ __all__ = [
     "controller_kind",
     "controller_names",
     "default_systems",
+    "register_controller",
+    "unregister_controller",
 ]
 
 Controller = PIDController | FuzzyPIController
@@ -364,10 +366,91 @@ _CONTROLLERS: dict[str, ControllerKind] = {
 
 #: Every controller kind by name (read-only view of the registry).
 CONTROLLERS: Mapping[str, ControllerKind] = MappingProxyType(_CONTROLLERS)
+_BUILT_IN = frozenset(_CONTROLLERS)
+
+
+#: Environment variable naming modules (comma-separated) that register controllers when the
+#: registry is first asked (so the command line and worker processes see a user's laws).
+PLUGINS_ENV = "FUZZYSERVO_PLUGINS"
+#: Entry-point group of installed packages that register controllers the same way.
+PLUGINS_GROUP = "fuzzyservo.controllers"
+_PLUGINS = {"loaded": False}
+
+
+def _load_plugins() -> None:
+    """Import the modules of :data:`PLUGINS_ENV` and of the :data:`PLUGINS_GROUP` entry
+    points once; each registers its kinds with :func:`register_controller` on import."""
+    if _PLUGINS["loaded"]:
+        return
+    _PLUGINS["loaded"] = True
+    import importlib
+    import os
+    from importlib.metadata import entry_points
+
+    names = [n.strip() for n in os.environ.get(PLUGINS_ENV, "").split(",") if n.strip()]
+    for name in names:
+        try:
+            importlib.import_module(name)
+        except ImportError as exc:
+            raise ParameterError(f"{PLUGINS_ENV}: cannot import module {name!r} ({exc})"
+                                 ) from None
+    for ep in entry_points(group=PLUGINS_GROUP):
+        ep.load()
+
+
+def register_controller(kind: ControllerKind, *, replace: bool = False) -> ControllerKind:
+    """Register a controller kind, e.g. of a control law written in a user's own module.
+
+    Every front end then takes it by name: simulate, simulate_batch, tune, sweeps, the page,
+    ``export c`` and ``export fmu`` (its class is a :class:`fuzzyservo.control.LawController`
+    whose ``law`` declares the layout and the C port; docs/architecture.md, "Control laws").
+    For the command line and the worker processes of sweeps, name the module in
+    ``$FUZZYSERVO_PLUGINS`` or as an entry point of the group ``fuzzyservo.controllers``.
+
+    Parameters
+    ----------
+    kind : ControllerKind
+        The kind; its ``cls`` must have a ``law`` and ``gain_names``.
+    replace : bool
+        Replace a kind of the same name (default: refuse).
+
+    Returns
+    -------
+    ControllerKind
+        ``kind``.
+
+    Raises
+    ------
+    ParameterError
+        A bad name, a name taken, or a class without a law.
+    """
+    if not isinstance(kind, ControllerKind):
+        raise ParameterError(f"expected a ControllerKind, got {type(kind).__name__}")
+    if not (kind.name and all(ch.isalnum() or ch in "-_" for ch in kind.name)
+            and kind.name[0].isalpha() and kind.name == kind.name.lower()):
+        raise ParameterError(f"a controller name is lower-case letters, digits, - and _, "
+                             f"starting with a letter; got {kind.name!r}")
+    if kind.name in _CONTROLLERS and not replace:
+        raise ParameterError(f"controller {kind.name!r} is registered already (replace=True "
+                             f"replaces it)")
+    law = getattr(kind.cls, "law", None)
+    if law is None or not hasattr(kind.cls, "gain_names"):
+        raise ParameterError(f"controller {kind.name}: class {kind.cls.__name__} has no law "
+                             f"(a fuzzyservo.control.LawController with law and gain_names)")
+    _CONTROLLERS[kind.name] = kind
+    return kind
+
+
+def unregister_controller(name: str) -> None:
+    """Remove a kind :func:`register_controller` added (the built-in ones stay)."""
+    if name in _BUILT_IN:
+        raise ParameterError(f"controller {name} is built in and cannot be removed")
+    _CONTROLLERS.pop(name, None)
 
 
 def controller_names() -> tuple[str, ...]:
     """The registered controller names, in registry order."""
+    _load_plugins()
     return tuple(_CONTROLLERS)
 
 
@@ -379,6 +462,7 @@ def controller_kind(name: str) -> ControllerKind:
     ParameterError
         Unknown name (the message lists the registered ones).
     """
+    _load_plugins()
     return lookup(_CONTROLLERS, name, "controller")
 
 
