@@ -416,8 +416,27 @@ def _replay_before(block: Block, scratch: Path, capsys: pytest.CaptureFixture[st
             for cmd in _commands(b):
                 _run_command(b, cmd, scratch, capsys)
         elif b.lang == "python":
-            exec(compile(b.text, f"README.md:{b.line}", "exec"),  # noqa: S102
-                 {"__name__": "__readme__"})
+            _exec_block(compile(b.text, f"README.md:{b.line}", "exec"))
+
+
+def _exec_block(code: object) -> None:
+    """Run a Python block as a user's script runs: as a module in ``sys.modules`` (dataclasses
+    look their module up), and leave the controller registry as it was (a block that registers
+    its own law does not add it to the other tests of this worker)."""
+    import sys
+    import types
+
+    from fuzzyservo.registry import controllers as reg
+
+    module = types.ModuleType("__readme__")
+    saved = dict(reg._CONTROLLERS)
+    sys.modules["__readme__"] = module
+    try:
+        exec(code, module.__dict__)  # noqa: S102 - the README's own code
+    finally:
+        sys.modules.pop("__readme__", None)
+        reg._CONTROLLERS.clear()
+        reg._CONTROLLERS.update(saved)
 
 
 def test_every_command_has_a_check() -> None:
@@ -473,7 +492,7 @@ def test_python_block(block: Block, scratch: Path,
                       capsys: pytest.CaptureFixture[str]) -> None:
     _replay_before(block, scratch, capsys)
     code = compile(block.text, f"README.md:{block.line}", "exec")
-    exec(code, {"__name__": "__readme__"})  # noqa: S102 - the README's own code
+    _exec_block(code)
     for name, check in WRITTEN.items():
         if f'"{name}"' in block.text:
             check(scratch / name)

@@ -10,21 +10,40 @@ import os
 import shlex
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fuzzyservo.paper import named_set
-from fuzzyservo.registry import build_controller, build_plant, controller_kind, controller_names
+from fuzzyservo.registry import (
+    build_controller,
+    build_plant,
+    controller_kind,
+    controller_names,
+    register_controller,
+    unregister_controller,
+)
 from fuzzyservo.sim import Step, simulate, simulate_batch
 from tests.control import leadlag
 from tests.export.ctl_harness import CStep, build
 
+# importing the module registers the law (as a user's module does); here it is registered only
+# while this module's tests run, so the tests that go over every registered kind see the
+# package's own
+unregister_controller("leadlag")
 PARAMS = named_set("paper")
 GAINS = {"k": 8.0, "t1": 0.02, "t2": 0.002}
 TS = 1e-3
 ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _registered() -> Iterator[None]:
+    register_controller(leadlag.KIND, replace=True)
+    yield
+    unregister_controller("leadlag")
 
 
 def _tustin(k: float, t1: float, t2: float, e: np.ndarray) -> np.ndarray:
