@@ -219,14 +219,19 @@ class Law:
         controller's arrays (``s`` updated in place)."""
         return self.kernels("per-step", [_step_arrays])._step_arrays
 
-    def pack_rows(self, gains: FloatArray, constants: FloatArray) -> FloatArray:
-        """:attr:`pack` with the shapes checked."""
+    def gain_rows(self, gains: FloatArray) -> FloatArray:
+        """``gains`` as float64 rows of the law's gain columns (shape checked)."""
         g = np.asarray(gains, dtype=np.float64)
-        k = np.asarray(constants, dtype=np.float64)
         if g.ndim != 2 or g.shape[1] != len(self.gains):
             raise ParameterError(
                 f"{self.title} gains need shape (runs, {len(self.gains)}) with columns "
                 f"{', '.join(self.gain_names)}, got {g.shape}")
+        return g
+
+    def pack_rows(self, gains: FloatArray, constants: FloatArray) -> FloatArray:
+        """:attr:`pack` with the shapes checked."""
+        g = self.gain_rows(gains)
+        k = np.asarray(constants, dtype=np.float64)
         if k.shape != (len(self.constants),):
             raise ParameterError(f"{self.title} constants need {len(self.constants)} values "
                                  f"({', '.join(self.constant_names)}), got {k.shape}")
@@ -310,11 +315,7 @@ class LawController:
     def pack_gains(self, gains: FloatArray) -> FloatArray:
         """One packed parameter row per row of ``gains`` (columns :attr:`gain_names`), with
         this controller's constants."""
-        g = np.asarray(gains, dtype=np.float64)
-        if g.ndim != 2 or g.shape[1] != len(self.law.gains):
-            raise ParameterError(
-                f"{self.law.title} gains need shape (runs, {len(self.law.gains)}) with columns "
-                f"{', '.join(self.law.gain_names)}, got {g.shape}")
+        g = self.law.gain_rows(gains)
         self.check_gain_rows(g)
         return self.law.pack_rows(g, self.law_constants())
 
