@@ -65,8 +65,8 @@ def _peer_loop(servo: LinearServo, n: int) -> float:
 
     labels = ["NB", "NM", "NS", "ZO", "PS", "PM", "PB"]
     a_labels = ["ZO", "VS", "S", "SB", "MB", "B", "VB"]
-    du_rules, _ = du_system().uniform_kernel_args()
-    a_rules, _ = alpha_system().uniform_kernel_args()
+    du_rules = np.array(du_system().rule_table())
+    a_rules = np.array(alpha_system().rule_table())
     uni = np.linspace(-1.0, 1.0, 201)
     a_uni = np.linspace(0.0, 1.0, 201)
 

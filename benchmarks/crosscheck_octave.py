@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from fuzzyservo.formats import read_system, write_system
-from fuzzyservo.fuzzy import general
+from fuzzyservo.fuzzy import evaluate
 from fuzzyservo.fuzzy.system import And, Consequent, FuzzySystem, Is, Or, Rule, Term, Variable
 from fuzzyservo.paper import system_file
 
@@ -147,7 +147,7 @@ def main() -> int:
             lo = np.array([v.range[0] for v in s.inputs])
             hi = np.array([v.range[1] for v in s.inputs])
             x = lo + (hi - lo) * rng.uniform(0.0, 1.0, (args.points, len(s.inputs)))
-            ours = general.evaluate(s, x)
+            ours = evaluate(s, x)
             theirs = octave_eval(path, x, args.npoints)
             if s.defuzzifier == "bisector":
                 # toolkit 0.4.6's defuzz.m returns the bisector's sample index ("crisp_x =

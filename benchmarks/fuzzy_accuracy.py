@@ -18,6 +18,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from fuzzyservo.fuzzy import evaluate, pack  # noqa: E402
 from fuzzyservo.paper import alpha_system, du_system  # noqa: E402
 
 # the same module name as in the tests, so numba's on-disk cache serves both
@@ -40,9 +41,10 @@ def main() -> int:
           f"{'within':>7} {'seconds':>8}")
     ok = True
     for name, build in (("du", du_system), ("alpha", alpha_system)):
-        system = build()
-        rules, lims = system.uniform_kernel_args()
-        exact = system.evaluate(e, de)
+        packed = pack(build())
+        assert packed.path == "uniform grid"
+        rules, lims = packed.kernel_args()
+        exact = evaluate(packed, np.column_stack([e, de]))[:, 0]
         t0 = time.perf_counter()
         brute = brute_uniform(e, de, rules, lims, args.samples)
         dt = time.perf_counter() - t0

@@ -4,9 +4,10 @@ One table, every figure measured in this run, on the paper's Δu system (Fig. 3a
 points of [-1.2, 1.2]^2 (seed 0):
 
 - ours, batch: the compiled kernel ``eval_uniform_batch`` alone, and the public
-  ``MamdaniSystem.evaluate`` (validation included) on 10^6 points, one core;
-- ours, scalar: a Python loop calling ``evaluate_scalar`` once per point; for scale, the same
-  loop calling the compiled kernel directly (numba's dispatcher overhead) and doing nothing;
+  ``fuzzyservo.fuzzy.evaluate`` (validation included) on 10^6 points, one core;
+- ours, scalar: a Python loop calling ``evaluate`` on one point at a time (the system packed
+  once); for scale, the same loop calling the compiled kernel directly (numba's dispatcher
+  overhead) and doing nothing;
 - scikit-fuzzy ``ControlSystemSimulation`` at its defaults (201-point universes), one point at a
   time on a subsample, and its fastest array use (arrays as inputs);
 - simpful at its defaults (1000 subdivisions), one point at a time on a subsample;
@@ -33,6 +34,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from fuzzyservo.fuzzy import evaluate, pack
 from fuzzyservo.fuzzy.kernels import eval_uniform_batch, eval_uniform_checked
 from fuzzyservo.paper import du_system
 from fuzzyservo.paper.rulebases import DU_TABLE, LABELS
@@ -183,18 +185,19 @@ def main() -> int:
     rng = np.random.default_rng(SEED)
     e, de = rng.uniform(-1.2, 1.2, (2, args.points))
     ec, dec = np.clip(e, -1.0, 1.0), np.clip(de, -1.0, 1.0)
-    du = du_system()
-    exact = du.evaluate(e, de)  # also compiles / loads the cached kernel
-    t_batch = _best(lambda: du.evaluate(e, de))
-    rules, lims = du.uniform_kernel_args()
+    du = pack(du_system())
+    assert du.path == "uniform grid"
+    x = np.column_stack([e, de])
+    exact = evaluate(du, x)[:, 0]  # also compiles / loads the cached kernel
+    t_batch = _best(lambda: evaluate(du, x))
+    rules, lims = du.kernel_args()
     buf = np.empty_like(e)
     t_kernel = _best(lambda: eval_uniform_batch(e, de, rules, lims, buf))
-    scalar = du.evaluate_scalar
     el, del_ = e.tolist(), de.tolist()
 
     def loop() -> None:
         for a, b in zip(el, del_, strict=True):
-            scalar(a, b)
+            evaluate(du, (a, b))
 
     t_scalar = _best(loop, repeat=2)
     kernel = eval_uniform_checked

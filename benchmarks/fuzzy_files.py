@@ -9,7 +9,7 @@ Points: uniform on [-1.2, 1.2]^2 (seed 0; both files clip the inputs to [-1, 1])
 1. The general evaluator (``fuzzyservo.fuzzy.general``), 10^6 points, best of 3: the compiled
    ``eval_batch`` on one core (``numba.set_num_threads(1)``), the public ``evaluate``
    (validation included) on one core and with ``parallel=True`` on 2 threads; for the paper's
-   system also the built-in uniform-grid path (``du_system().evaluate``) on the same points,
+   system also the uniform-grid path (``evaluate`` of ``pack(du_system())``) on the same points,
    with the largest difference between the two exact evaluators.
    Target: >= 5 M evaluations/s per core (``eval_batch``).
 2. pyfuzzylite 8 (batched: numpy arrays as input values, then ``Engine.process``) importing
@@ -21,9 +21,11 @@ Points: uniform on [-1.2, 1.2]^2 (seed 0; both files clip the inputs to [-1, 1])
    ``.venv-fuzzylite``). Target: our ``evaluate`` (one core) >= 500x pyfuzzylite batched.
 3. The controllers' loops (fpi, stfpi via ``fuzzyservo.registry.build_controller``, 1 kHz,
    6 ms delay, linear and nonlinear plant): the built-in systems, the Δu system from the
-   shipped FLL file (``fuzzyservo.fuzzy.loop.loop_system``; α built-in), and (stfpi) both Δu
-   and α from files. ``simulate``: one 10 s run, best of 15; ``simulate_batch``: 64 runs of 10 s
-   (kdu varied), on every core, best of 3. Controller steps per second and the ratio
+   shipped FLL file on the general evaluator (``fuzzyservo.fuzzy.loop.loop_system(...,
+   grid=False)``: the shipped files have the uniform-grid form, which ``pack`` would
+   otherwise take; α built-in), and (stfpi) both Δu and α from files. ``simulate``: one
+   10 s run, best of 15; ``simulate_batch``: 64 runs of 10 s (kdu varied), on every core,
+   best of 3. Controller steps per second and the ratio
    file/built-in. Target: the loop with the Δu system from a file >= 1/3 of the built-in rate.
 
 Absolute rates drift on a shared machine; the ratios are taken between figures of this run.
@@ -47,7 +49,7 @@ import numba
 import numpy as np
 
 from fuzzyservo.formats import read_system, write_system
-from fuzzyservo.fuzzy import general
+from fuzzyservo.fuzzy import PackedSystem, evaluate, general, pack
 from fuzzyservo.fuzzy.loop import loop_system
 from fuzzyservo.fuzzy.system import FuzzySystem, Term, Variable
 from fuzzyservo.paper import du_system, paper_params, system_file
@@ -163,9 +165,11 @@ def _fmt(row: Row) -> str:
     return f"{item:<2} {what:<52} {system:<19} {n_s:>8} {rate_s:>11} {ratio_s:>8} {err:>9}"
 
 
-def _evaluator(comp: general.CompiledSystem, x: np.ndarray) -> tuple[float, float, np.ndarray]:
+def _evaluator(packed: PackedSystem, x: np.ndarray) -> tuple[float, float, np.ndarray]:
     """Rates [evaluations/s] of ``eval_batch`` and ``evaluate`` at the current thread count
     (best of 3, after a compiling call) and the values."""
+    comp = packed.compiled
+    assert comp is not None  # packed for the general evaluator
     out = np.empty((x.shape[0], len(comp.system.outputs)))
     general.eval_batch(comp.ints, comp.floats, x[:10], out[:10])  # compile / load
 
@@ -173,30 +177,31 @@ def _evaluator(comp: general.CompiledSystem, x: np.ndarray) -> tuple[float, floa
         general.eval_batch(comp.ints, comp.floats, x, out)
 
     def public() -> None:
-        general.evaluate(comp, x)
+        evaluate(packed, x)
 
-    vals = general.evaluate(comp, x)
+    vals = evaluate(packed, x)
     return x.shape[0] / _best(kernel), x.shape[0] / _best(public), vals[:, 0]
 
 
-def _parallel(comp: general.CompiledSystem, x: np.ndarray) -> float:
+def _parallel(comp: PackedSystem, x: np.ndarray) -> float:
     """Rate of ``evaluate(..., parallel=True)`` at the current thread count [evaluations/s]."""
-    general.evaluate(comp, x[:2000], parallel=True)  # compile / load
+    evaluate(comp, x[:2000], parallel=True)  # compile / load
 
     def run() -> None:
-        general.evaluate(comp, x, parallel=True)
+        evaluate(comp, x, parallel=True)
 
     return float(x.shape[0] / _best(run))
 
 
 def _builtin(x: np.ndarray) -> tuple[float, np.ndarray]:
-    """Rate of the built-in uniform-grid path (``du_system().evaluate``) and its values."""
-    du = du_system()
-    e, de = x[:, 0].copy(), x[:, 1].copy()
-    vals = du.evaluate(e, de)
+    """Rate of the built-in uniform-grid path (``evaluate`` of ``pack(du_system())``) and its
+    values."""
+    du = pack(du_system())
+    assert du.path == "uniform grid"
+    vals = evaluate(du, x)[:, 0]
 
     def run() -> None:
-        du.evaluate(e, de)
+        evaluate(du, x)
 
     return x.shape[0] / _best(run), vals
 
@@ -254,8 +259,7 @@ def main() -> int:
         counts = [(0, 200), (1000, 1000)] if args.quick else [(0, 2000), (1000, 10_000)]
         peer = {name: _fuzzylite(args.fuzzylite_python, path, x, counts)
                 for name, path in files.items()}
-        comps = {name: general.compile_system(read_system(path))
-                 for name, path in files.items()}
+        comps = {name: pack(read_system(path), grid=False) for name, path in files.items()}
 
     # 1: the general evaluator, one core
     numba.set_num_threads(1)
@@ -266,8 +270,8 @@ def main() -> int:
     params = paper_params()
     plants: Plants = {"linear": (build_plant("linear", params), Step(0.1)),
                       "nonlinear": (build_plant("nonlinear", params), Step(0.05))}
-    du_file = loop_system(read_system(paper_path), source=str(paper_path))
-    alpha_file = loop_system(read_system(alpha_path), source=str(alpha_path))
+    du_file = loop_system(read_system(paper_path), source=str(paper_path), grid=False)
+    alpha_file = loop_system(read_system(alpha_path), source=str(alpha_path), grid=False)
     alpha_builtin = default_systems(("alpha",))["alpha"]
     configs: list[tuple[str, str, dict[str, Any] | None]] = [
         ("fpi", "built-in", None),
@@ -300,7 +304,7 @@ def main() -> int:
                      parallel[name], parallel[name] / r_kernel, "exact"))
         if name == "paper Δu":
             diff = float(np.max(np.abs(builtin_vals - vals)))
-            rows.append(("1", "built-in uniform path (du_system().evaluate)", name, n_pts,
+            rows.append(("1", "uniform-grid path (evaluate, pack(du_system()))", name, n_pts,
                          builtin_rate, builtin_rate / r_kernel, f"{diff:.1e}"))
     # 2: ratio = our evaluate on one core over pyfuzzylite's batch
     peer_ratios: list[tuple[str, float]] = []

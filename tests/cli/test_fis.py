@@ -21,7 +21,7 @@ import pytest
 
 from fuzzyservo.cli import main
 from fuzzyservo.formats import read_system
-from fuzzyservo.fuzzy.general import evaluate, membership
+from fuzzyservo.fuzzy import evaluate, membership
 from fuzzyservo.fuzzy.system import Term
 from fuzzyservo.plots.systems import response_data, system_figure_data, term_curve
 

@@ -12,7 +12,7 @@ import pytest
 
 from fuzzyservo.cli import main
 from fuzzyservo.formats import read_system, write_system
-from fuzzyservo.fuzzy.general import evaluate
+from fuzzyservo.fuzzy import evaluate
 from fuzzyservo.paper import alpha_system, du_system
 from tests.cli.test_fis import ONE_FCL, THREE_FIS, TWO_FIS
 
@@ -35,7 +35,7 @@ def test_surface_at_points(tmp_path: Path) -> None:
     np.testing.assert_array_equal(data[:, 0], [-0.5, 1.0, 0.0])
     np.testing.assert_array_equal(data[:, 1], [0.25, 1.0, -3.0])
     # written with repr: round-trip exact
-    np.testing.assert_array_equal(data[:, 2], alpha_system().evaluate(data[:, 0], data[:, 1]))
+    np.testing.assert_array_equal(data[:, 2], evaluate(alpha_system(), data[:, :2])[:, 0])
 
 
 def test_surface_grid_and_plots(tmp_path: Path) -> None:
@@ -48,7 +48,7 @@ def test_surface_grid_and_plots(tmp_path: Path) -> None:
     # the corners: -8/9 and 8/9 (only NB / PB fire); rounding only
     assert data[0, 2] == pytest.approx(-8 / 9, abs=1e-15)
     assert data[-1, 2] == pytest.approx(8 / 9, abs=1e-15)
-    np.testing.assert_array_equal(data[:, 2], du_system().evaluate(data[:, 0], data[:, 1]))
+    np.testing.assert_array_equal(data[:, 2], evaluate(du_system(), data[:, :2])[:, 0])
     assert png.read_bytes()[:8] == PNG and mf.read_bytes()[:8] == PNG
 
 

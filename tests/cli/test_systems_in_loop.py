@@ -16,7 +16,7 @@ from fuzzyservo.control import FuzzyPIController
 from fuzzyservo.errors import ParameterError
 from fuzzyservo.files import read_gains_file
 from fuzzyservo.formats import dumps, loads, read_system
-from fuzzyservo.fuzzy import general
+from fuzzyservo.fuzzy import evaluate, pack
 from fuzzyservo.fuzzy.loop import always_fires, loop_system
 from fuzzyservo.fuzzy.system import (
     And,
@@ -73,32 +73,48 @@ def test_the_paper_systems_from_files_evaluate_as_the_built_in_ones(role: str,
                                                                     maker: object) -> None:
     rng = np.random.default_rng(7)
     x = rng.uniform(-1.2, 1.2, (20_000, 2))
-    ref = maker().evaluate(x[:, 0], x[:, 1])  # type: ignore[operator]
+    built_in = pack(maker())  # type: ignore[operator]
+    assert built_in.path == "uniform grid"
+    ref = evaluate(built_in, x)[:, 0]
     for fmt in ("fis", "fcl", "fll"):
-        got = general.evaluate(read_system(system_file(role, fmt)), x)[:, 0]
+        system = read_system(system_file(role, fmt))
+        got = evaluate(pack(system, grid=False), x)[:, 0]
         # two exact evaluators: rounding only (outputs within [-1, 1])
         assert np.max(np.abs(got - ref)) <= 1e-14
+        # the file has the uniform-grid form: packed as the built-in system, the same bits
+        assert pack(system).path == "uniform grid"
+        np.testing.assert_array_equal(evaluate(system, x)[:, 0], ref)
 
 
 def test_a_loop_with_the_paper_files_equals_the_built_in_loop() -> None:
     plant = build_plant("linear", paper_params())
     g = {"ke": 10.0, "kde": 5000.0, "kdu": 0.006}
-    files = {r: loop_system(read_system(system_file(r, "fcl")), source=r)
-             for r in ("du", "alpha")}
+    # the general evaluator on the files (grid=False), and the files as packed by default
+    # (the uniform grid, as the built-in systems)
+    general_files = {r: loop_system(read_system(system_file(r, "fcl")), source=r, grid=False)
+                     for r in ("du", "alpha")}
+    grid_files = {r: loop_system(read_system(system_file(r, "fcl")), source=r)
+                  for r in ("du", "alpha")}
+    assert all(f.packed.path == "partition" for f in general_files.values())
+    assert all(f.packed.path == "uniform grid" for f in grid_files.values())
     for kind in ("fpi", "stfpi"):
         a = simulate(build_controller(kind, g, dt=1e-3), plant, Step(0.1), duration=3.0)
-        b = simulate(build_controller(kind, g, dt=1e-3, systems=files), plant, Step(0.1),
-                     duration=3.0)
+        b = simulate(build_controller(kind, g, dt=1e-3, systems=general_files), plant,
+                     Step(0.1), duration=3.0)
         n = a.u.size
         assert np.max(np.abs(a.u - b.u)) <= n * PER_SAMPLE
         assert np.max(np.abs(a.y - b.y)) <= n * PER_SAMPLE * 0.1  # |y'| << |u|' here
         assert np.max(np.abs(a.u)) > 0.05  # the loop moved
+        c = simulate(build_controller(kind, g, dt=1e-3, systems=grid_files), plant,
+                     Step(0.1), duration=3.0)
+        np.testing.assert_array_equal(c.u, a.u)  # the same tables, the same code
+        np.testing.assert_array_equal(c.y, a.y)
 
 
 def test_the_batch_kernel_runs_a_file_system_as_the_single_run_kernel() -> None:
     plant = build_plant("nonlinear", paper_params())
-    files = {r: loop_system(read_system(system_file(r, "fll")), source=r)
-             for r in ("du", "alpha")}
+    files = {r: loop_system(read_system(system_file(r, "fll")), source=r, grid=False)
+             for r in ("du", "alpha")}  # the general evaluator's loops
     ctl = build_controller("stfpi", {"ke": 10.0, "kde": 5000.0, "kdu": 0.006}, dt=1e-3,
                            systems=files)
     gains = np.array([[10.0, 5000.0, 0.006], [20.0, 2000.0, 0.003]])
@@ -144,12 +160,12 @@ def test_a_non_paper_system_runs_in_the_loop_as_its_per_sample_evaluation() -> N
     r = 0.12
     state = ctl.initial_state()
     u_prev, e_prev = 0.0, 0.0
-    comp = general.compile_system(system)
+    assert ls.packed.path != "uniform grid"
     for k, yk in enumerate(y):
         u, state = ctl.step(state, r, float(yk))
         e = r - yk
         de = e - (e_prev if k > 0 else 0.0)
-        dun = general.evaluate(comp, [ke * e, kde * de])[0]
+        dun = evaluate(ls.packed, [ke * e, kde * de])[0]
         u_ref = min(max(u_prev + kdu * dun, -1.0), 1.0)
         assert u == pytest.approx(u_ref, abs=1e-15)
         u_prev, e_prev = u_ref, e
@@ -168,7 +184,7 @@ def test_loop_system_checks() -> None:
     with pytest.raises(ParameterError, match="no value for when no rule fires"):
         loop_system(holed, source="holed.fll")
     ok = loop_system(holed, source="holed.fll", no_rule_value=0.25)
-    corner = general.evaluate(ok.compiled, [-1.0, -1.0])[0]  # only the removed rule fires
+    corner = evaluate(ok.packed, [-1.0, -1.0])[0]  # only the removed rule fires
     assert corner == 0.25
     three = dataclasses.replace(five, inputs=(*five.inputs, dataclasses.replace(
         five.inputs[0], name="x3")))

@@ -21,8 +21,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from fuzzyservo.control import FuzzyPIController, PIDController
-from fuzzyservo.errors import ParameterError
-from fuzzyservo.fuzzy import LinguisticVariable, MamdaniSystem, RuleBase, Trapezoid
+from fuzzyservo.fuzzy import FuzzySystem, PackedSystem, Term, Variable, evaluate, pack
+from fuzzyservo.fuzzy.engine import grid_form
 from fuzzyservo.paper import alpha_system, du_system, paper_params
 from fuzzyservo.paper.rulebases import ALPHA_TABLE, DU_TABLE
 from fuzzyservo.registry import build_controller, build_plant, controller_kind, controller_names
@@ -229,18 +229,20 @@ def _textbook_pid(par: Mapping[str, Any], seq: list[tuple[float, float]],
     return out
 
 
-def _general(system: MamdaniSystem, table: tuple[tuple[str, ...], ...]) -> MamdaniSystem:
+def _general(system: FuzzySystem, table: tuple[tuple[str, ...], ...]) -> PackedSystem:
     """The paper's system from its printed table, with the output triangles written as
     degenerate trapezoids: the same sets, but evaluated by the general engine (rule strengths,
     piecewise-linear exact centroid), not the uniform-grid kernel the controllers use."""
-    out = LinguisticVariable(name=system.output.name, universe=system.output.universe,
-                             terms=tuple((lab, Trapezoid(a=mf.a, b=mf.b, c=mf.b, d=mf.c))
-                                         for lab, mf in system.output.terms))
+    o = system.outputs[0]
+    out = Variable(o.name, o.range, tuple(
+        Term(t.name, "trapezoid", (t.params[0], t.params[1], t.params[1], t.params[2]))
+        for t in o.terms))
     e, de = system.inputs
-    general = MamdaniSystem(rules=RuleBase.from_table(table, columns=e, rows=de, output=out))
-    with pytest.raises(ParameterError):  # proof that the uniform kernel is not used
-        general.uniform_kernel_args()
-    return general
+    general = FuzzySystem.from_table(table, columns=e, rows=de, output=out)
+    assert grid_form(general) is None  # proof that the uniform kernel is not used
+    packed = pack(general)
+    assert packed.path != "uniform grid" and packed.compiled is not None
+    return packed
 
 
 _DU_GENERAL = _general(du_system(), DU_TABLE)
@@ -265,8 +267,8 @@ def _textbook_fuzzy(par: Mapping[str, Any], self_tuning: bool, seq: list[tuple[f
         de = e - e_prev if par["de_per"] == "sample" else (e - e_prev) / H
         en = min(max(ke * e, -1.0), 1.0)
         den = min(max(kde * de, -1.0), 1.0)
-        dun = _DU_GENERAL.evaluate(en, den)
-        alpha = _ALPHA_GENERAL.evaluate(en, den) if self_tuning else 1.0
+        dun = float(evaluate(_DU_GENERAL, [en, den])[0])
+        alpha = float(evaluate(_ALPHA_GENERAL, [en, den])[0]) if self_tuning else 1.0
         u_prev = min(max(u_prev + alpha * kdu * dun, lo), hi)
         e_prev = e
         out.append(u_prev)

@@ -8,6 +8,7 @@ import skfuzzy as fuzz
 
 from fuzzyservo.control import FuzzyPIController, SelfTuningFuzzyPIController
 from fuzzyservo.errors import ParameterError
+from fuzzyservo.fuzzy import evaluate, pack
 from fuzzyservo.paper import alpha_system, du_system
 
 H = 1e-3
@@ -71,6 +72,12 @@ def test_matches_scikit_fuzzy_reference(cls: type[FuzzyPIController]) -> None:
         u, s = ctl.step(s, r, y)
         us.append(u)
         alphas.append(s.alpha)
+    # a packed system is taken as it is: the same tables as packing here
+    packed = cls.from_systems(pack(du_system()), pack(alpha_system()), dt=H, ke=10.0,
+                              kde=50.0, kdu=0.2)
+    assert np.array_equal(packed.pack(), ctl.pack(), equal_nan=True)
+    assert all(np.array_equal(a, b, equal_nan=True)
+               for a, b in zip(packed.tables(), ctl.tables(), strict=True))
     ref_u, ref_a = _reference(seq, 10.0, 50.0, 0.2, cls.self_tuning)
     # skfuzzy samples the output universe (40001 points): centroid error < 1e-7 per sample
     assert us == pytest.approx(ref_u, abs=1e-6)
@@ -96,7 +103,7 @@ def test_options_initial_error_and_de_per_second() -> None:
                                            **kw)
     u, _ = first.step(first.initial_state(), 0.05, 0.0)
     # e(-1) = e(0): Δe = 0, so Δu_n = Δu(e_n = 0.5, 0) from the Δu system alone
-    assert u == pytest.approx(0.3 * float(du_system().evaluate(0.5, 0.0)), rel=1e-12)
+    assert u == pytest.approx(0.3 * float(evaluate(du_system(), [0.5, 0.0])[0]), rel=1e-12)
     per_s = FuzzyPIController.from_systems(du_system(), dt=H, kde=50.0 * H, de_per="second",
                                            **kw)
     per_k = FuzzyPIController.from_systems(du_system(), dt=H, kde=50.0, **kw)

@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pytest
 
+from fuzzyservo.fuzzy.engine import pack
 from fuzzyservo.fuzzy.kernels import eval_uniform_grid, eval_uniform_pair
 from fuzzyservo.paper import alpha_system, du_system
 
@@ -109,8 +110,10 @@ def test_kernel_equals_the_previous_algorithm_bit_for_bit(n_out: int) -> None:
 def test_pair_and_strided_tables_equal_the_previous_algorithm() -> None:
     """The paper's two systems through the pair evaluator (shared cell), and a rule table
     that is a strided view (the kernel indexes with the array's strides)."""
-    rd, ld = du_system().uniform_kernel_args()
-    ra, la = alpha_system().uniform_kernel_args()
+    pd, pa = pack(du_system()), pack(alpha_system())
+    assert pd.path == pa.path == "uniform grid"
+    rd, ld = pd.kernel_args()
+    ra, la = pa.kernel_args()
     rng = np.random.default_rng(13)
     for x1, x2 in _inputs(rng, ld, 2000):
         du, alpha = eval_uniform_pair(x1, x2, rd, ld, ra, la)

@@ -174,8 +174,9 @@ def _file_systems() -> list[tuple[str, dict[str, Any], dict[str, dict[str, float
     Sugeno systems) with gains that map a 0.1 m step and a 0.3 mm change per sample onto the
     input ranges and keep the increments small (so the command is not held at its limit,
     where it would hide the evaluator)."""
-    paper = {"du": loop_system(read_system(SYSTEMS / "paper-du.fis")),
-             "alpha": loop_system(read_system(SYSTEMS / "paper-alpha.fll"))}
+    paper = {"du": loop_system(read_system(SYSTEMS / "paper-du.fis"), grid=False),
+             "alpha": loop_system(read_system(SYSTEMS / "paper-alpha.fll"), grid=False)}
+    assert all(v.packed.path == "partition" for v in paper.values())
     out = [("paper-fis", paper, {k: dict(read_gains_file(GAINS / f"linear-{k}.toml").gains)
                                  for k in ("fpi", "stfpi")})]
     for path in sorted(FORMATS.rglob("*.*")):
@@ -313,7 +314,7 @@ def test_two_exports_link_into_one_program(tmp_path: Path) -> None:
     """Two controllers (a PID and a self-tuning fuzzy PI with a system from a file) in one
     program: no symbol clashes, each computes its own commands."""
     a = generate_c("pid", {"kp": 20.0, "ki": 5.0, "kd": 0.1}, ts=TS, name="axis1")
-    systems = {"du": loop_system(read_system(SYSTEMS / "paper-du.fcl")),
+    systems = {"du": loop_system(read_system(SYSTEMS / "paper-du.fcl"), grid=False),
                "alpha": default_systems(("alpha",))["alpha"]}
     b = generate_c("stfpi", dict(read_gains_file(GAINS / "linear-stfpi.toml").gains), ts=TS,
                    systems=systems, name="axis2")

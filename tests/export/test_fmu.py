@@ -21,6 +21,10 @@ from fmpy.validation import validate_fmu
 
 from fuzzyservo.cli import main
 from fuzzyservo.files import read_gains_file
+from fuzzyservo.formats import read_system, write_system
+from fuzzyservo.fuzzy import FuzzySystem, Term, Variable
+from fuzzyservo.fuzzy.loop import loop_system
+from fuzzyservo.paper import paper_fuzzy_system
 from fuzzyservo.paper.published import named_set
 from fuzzyservo.registry import build_controller, build_plant, controller_names
 from fuzzyservo.sim import simulate, simulate_open_loop
@@ -77,6 +81,19 @@ def _export(argv: list[str]) -> None:
     assert main(["export", "fmu", *argv]) == 0
 
 
+def _general_form(role: str) -> FuzzySystem:
+    """The paper's system with its output triangles written as degenerate trapezoids: the
+    same sets, evaluated by the general evaluator (the shipped files take the uniform grid)."""
+    s = paper_fuzzy_system(role)
+    o = s.outputs[0]
+    out = Variable(o.name, o.range, tuple(
+        Term(t.name, "trapezoid", (t.params[0], t.params[1], t.params[1], t.params[2]))
+        for t in o.terms), o.default)
+    return FuzzySystem.from_table(
+        [[o.terms[k].name for k in row] for row in s.rule_table()], columns=s.inputs[0],
+        rows=s.inputs[1], output=out, name=s.name)
+
+
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     d = tmp_path_factory.mktemp("fmus")
@@ -93,6 +110,12 @@ def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     _export(["--gains", str(GAINS / "nonlinear-stfpi.toml"), "--du-system",
              str(SYSTEMS / "paper-du.fcl"), "--alpha-system", str(SYSTEMS / "paper-alpha.fis"),
              "--name", "stfpi_files", "--out", str(out["stfpi-files"])])
+    for role in ("du", "alpha"):  # beside the FMU (test_master_loop_... reads them)
+        write_system(_general_form(role), d / f"general-{role}.fll")
+    out["stfpi-general"] = d / "stfpi-general.fmu"
+    _export(["--gains", str(GAINS / "nonlinear-stfpi.toml"), "--du-system",
+             str(d / "general-du.fll"), "--alpha-system", str(d / "general-alpha.fll"),
+             "--name", "stfpi_general", "--out", str(out["stfpi-general"])])
     out["stfpi-float"] = d / "stfpi-float.fmu"
     _export(["--gains", str(GAINS / "nonlinear-stfpi.toml"), "--float", "--name",
              "stfpi_float", "--out", str(out["stfpi-float"])])
@@ -205,7 +228,8 @@ def _master(ctl_path: Path, servo_path: Path, r: np.ndarray, *,
 
 CASES = [("pid", "nonlinear", "hose"), ("pid2", "nonlinear", "0"), ("fpi", "linear", "hose"),
          ("stfpi", "nonlinear", "hose"), ("stfpi", "linear", "0"),
-         ("stfpi-files", "nonlinear", "0"), ("p", "small-signal", "0"),
+         ("stfpi-files", "nonlinear", "0"), ("stfpi-general", "nonlinear", "0"),
+         ("p", "small-signal", "0"),
          ("pi", "nonlinear", "0")]
 
 
@@ -215,11 +239,16 @@ def test_master_loop_of_the_two_fmus_equals_simulate(key: str, plant: str, delay
     kind = key.split("-")[0]
     systems = None
     if key == "stfpi-files":
-        from fuzzyservo.formats import read_system
-        from fuzzyservo.fuzzy.loop import loop_system
-
+        # the shipped files have the uniform-grid form: the exported FMU takes that path
         systems = {"du": loop_system(read_system(SYSTEMS / "paper-du.fcl")),
                    "alpha": loop_system(read_system(SYSTEMS / "paper-alpha.fis"))}
+        assert all(v.packed.path == "uniform grid" for v in systems.values())
+    elif key == "stfpi-general":
+        # the same sets in the general evaluator's form (the partition path), in both
+        folder = fmus["stfpi-general"].parent
+        systems = {r: loop_system(read_system(folder / f"general-{r}.fll"))
+                   for r in ("du", "alpha")}
+        assert all(v.packed.path == "partition" for v in systems.values())
     path = GAINS / f"nonlinear-{kind}.toml"
     gains = dict(read_gains_file(path).gains) if path.exists() else (
         {"kp": 20.0} if kind == "p" else {"kp": 20.0, "ki": 20.0})

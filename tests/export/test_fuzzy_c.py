@@ -48,6 +48,7 @@ from fuzzyservo.errors import FormatError, ParameterError
 from fuzzyservo.export.fuzzy_c import emit_pair, emit_system, fragment, scratch_sizes
 from fuzzyservo.formats import read_system
 from fuzzyservo.fuzzy import general
+from fuzzyservo.fuzzy.engine import pack
 from fuzzyservo.fuzzy.general import compile_system, eval_batch, eval_first2
 from fuzzyservo.fuzzy.kernels import eval_uniform_grid, eval_uniform_pair
 from fuzzyservo.fuzzy.loop import loop_system
@@ -61,7 +62,6 @@ from fuzzyservo.fuzzy.system import (
     Rule,
     Term,
     Variable,
-    from_mamdani,
 )
 from fuzzyservo.paper import alpha_system, du_system
 from tests.formats.fuzzylite_oracle import EXAMPLES
@@ -308,9 +308,16 @@ def test_fragment_is_static_and_self_contained() -> None:
 # --- rule tables on uniform triangles -----------------------------------------------------------
 
 
+def _grid(system: FuzzySystem) -> tuple[np.ndarray, np.ndarray]:
+    """The uniform-grid tables of a paper system (``pack`` takes that path for them)."""
+    packed = pack(system)
+    assert packed.path == "uniform grid"
+    return packed.kernel_args()
+
+
 @pytest.mark.parametrize("make", [du_system, alpha_system], ids=["du", "alpha"])
 def test_paper_rule_tables_are_bit_identical(cd: CFuzzy, make: object) -> None:
-    rules, lims = make().kernel_args()  # type: ignore[operator]
+    rules, lims = _grid(make())  # type: ignore[operator]
     x = grid_points(lims, *rules.shape, np.random.default_rng(1), n=5000)
     py = np.array([eval_uniform_grid(a, b, rules, lims) for a, b in x])
     c = cd.grid(x[:, 0], x[:, 1], rules, lims)
@@ -339,7 +346,7 @@ def test_random_rule_tables(cd: CFuzzy) -> None:
 
 
 def test_pairs_on_the_same_and_on_other_grids(cd: CFuzzy) -> None:
-    (ra, la), (rb, lb) = du_system().kernel_args(), alpha_system().kernel_args()
+    (ra, la), (rb, lb) = _grid(du_system()), _grid(alpha_system())
     rng = np.random.default_rng(3)
     other_lims = lb.copy()
     other_lims[2:4] = [-0.5, 2.0]  # another x2 universe: located again
@@ -357,7 +364,7 @@ def test_pairs_on_the_same_and_on_other_grids(cd: CFuzzy) -> None:
 
 @pytest.mark.parametrize("path", sorted(PACKAGE_SYSTEMS.glob("paper-*")), ids=lambda p: p.name)
 def test_paper_files_take_the_partition_path_bit_identically(cd: CFuzzy, path: Path) -> None:
-    rules, lims = loop_system(read_system(path), source=path.name).kernel_args()
+    rules, lims = loop_system(read_system(path), source=path.name, grid=False).kernel_args()
     assert rules[0, general.H_PART] >= 0  # the partition fast path
     x = grid_points(np.array([-1.0, 1.0, -1.0, 1.0]), 7, 7, np.random.default_rng(4),
                     n=3000)
@@ -374,7 +381,7 @@ def test_paper_systems_on_the_general_path(cd: CFuzzy, defuzzifier: str,
     # piecewise-linear path on the paper's 7 x 7 tables
     rng = np.random.default_rng(5)
     for make in (du_system, alpha_system):
-        s = dataclasses.replace(from_mamdani(make()), defuzzifier=defuzzifier,
+        s = dataclasses.replace(make(), defuzzifier=defuzzifier,
                                 aggregation=aggregation)
         x = grid_points(np.array([-1.0, 1.0, -1.0, 1.0]), 7, 7, rng, n=150)
         check_system_double(cd, s, x, f"{make.__name__} {defuzzifier} {aggregation}")
@@ -560,8 +567,9 @@ def _emitted_set() -> tuple[Emitted, list[tuple[str, object]]]:
     """Systems in every form the generator emits, with the Python call each mirrors: the
     paper's tables, every two-input system file (all paths of the general evaluator, with
     their tables constant: what the compiler sees in generated code), pairs of each kind."""
-    du, al = du_system().kernel_args(), alpha_system().kernel_args()
-    gen_du = loop_system(read_system(PACKAGE_SYSTEMS / "paper-du.fis")).kernel_args()
+    du, al = _grid(du_system()), _grid(alpha_system())
+    gen_du = loop_system(read_system(PACKAGE_SYSTEMS / "paper-du.fis"),
+                         grid=False).kernel_args()
     smooth = loop_system(dataclasses.replace(SMOOTH, defuzzifier="bisector"),
                          no_rule_value=0.5).kernel_args()
     pl = loop_system(dataclasses.replace(FIXED, defuzzifier="mom")).kernel_args()
@@ -658,7 +666,7 @@ def test_each_generated_system_compiles_alone(tmp_path: Path) -> None:
     # translation unit: the two-input system files at -O2 in double, one per form (the paths
     # it takes), and the pairs; some at -O3 and in float.
     em, _ = _emitted_set()
-    du, al = du_system().kernel_args(), alpha_system().kernel_args()
+    du, al = _grid(du_system()), _grid(alpha_system())
 
     def units(real: str, singles: list[tuple[str, np.ndarray, np.ndarray]], pairs: bool
               ) -> list[str]:
@@ -689,7 +697,8 @@ def test_each_generated_system_compiles_alone(tmp_path: Path) -> None:
 
 
 def test_emitted_tables_are_exact() -> None:
-    rules, lims = loop_system(read_system(PACKAGE_SYSTEMS / "paper-alpha.fll")).kernel_args()
+    rules, lims = loop_system(read_system(PACKAGE_SYSTEMS / "paper-alpha.fll"),
+                              grid=False).kernel_args()
     text = emit_system("sys", rules, lims, real="double")
     body = text[text.index("sys_floats["):].split("};")[0].split("=", 1)[1]
     lits = [v.strip(" {\n") for v in body.split(",")]
@@ -711,7 +720,7 @@ def test_emitted_tables_are_exact() -> None:
 
 
 def test_emitted_code_refuses_the_other_real_type(tmp_path: Path) -> None:
-    du = du_system().kernel_args()
+    du = _grid(du_system())
     text = "typedef float fs_real;\n#define FS_FLOAT 1\n" + fragment() + \
         emit_system("sys", *du, real="double")
     with pytest.raises(AssertionError, match="sys_needs_double"):
@@ -729,7 +738,7 @@ def test_under_address_and_undefined_behaviour_sanitizers(tmp_path: Path) -> Non
     rng = np.random.default_rng(10)
     cases: list[bytes] = []
     expect: list[np.ndarray] = []
-    (ra, la), (rb, lb) = du_system().kernel_args(), alpha_system().kernel_args()
+    (ra, la), (rb, lb) = _grid(du_system()), _grid(alpha_system())
     xg = grid_points(la, 7, 7, rng, n=200)
     cases.append(grid_case(ra, la, xg))
     expect.append(np.array([eval_uniform_grid(a, b, ra, la) for a, b in xg]))
@@ -772,13 +781,13 @@ def _seeded_random_system(seed: int) -> FuzzySystem:
 
 @pytest.mark.parametrize("make", [du_system, alpha_system], ids=["du", "alpha"])
 def test_float_rule_tables_and_pair(cf: CFuzzy, make: object) -> None:
-    rules, lims = make().kernel_args()  # type: ignore[operator]
+    rules, lims = _grid(make())  # type: ignore[operator]
     x = f32(grid_points(lims, *rules.shape, np.random.default_rng(11), n=3000))
     py = np.array([eval_uniform_grid(a, b, rules, lims) for a, b in x])
     scale = np.full(py.shape, lims[5] - lims[4])
     assert np.max(float_deviation(cf.grid(x[:, 0], x[:, 1], rules, lims), py, scale)) \
         <= FLOAT_TOL
-    (ra, la), (rb, lb) = du_system().kernel_args(), alpha_system().kernel_args()
+    (ra, la), (rb, lb) = _grid(du_system()), _grid(alpha_system())
     want = np.array([eval_uniform_pair(a, b, ra, la, rb, lb) for a, b in x])
     ca, cb = cf.pair(x[:, 0], x[:, 1], ra, la, rb, lb)
     assert np.max(float_deviation(ca, want[:, 0], scale)) <= FLOAT_TOL
@@ -792,7 +801,7 @@ def float_systems() -> list[tuple[str, FuzzySystem]]:
     for make in (du_system, alpha_system):
         for d in ("centroid", "bisector", "mom", "som", "lom"):
             out.append((f"{make.__name__} {d}",
-                        dataclasses.replace(from_mamdani(make()), defuzzifier=d)))
+                        dataclasses.replace(make(), defuzzifier=d)))
     for agg in ("max", "bounded_sum", "sum", "probor"):
         for imp in ("min", "product"):
             for d in ("centroid", "bisector", "mom", "som", "lom"):
@@ -899,8 +908,9 @@ def test_float_regressions(cf: CFuzzy, name: str, system: FuzzySystem,
 
 
 def test_bad_tables_are_refused_in_one_line() -> None:
-    du = du_system().kernel_args()
-    packed = loop_system(read_system(PACKAGE_SYSTEMS / "paper-du.fis")).kernel_args()
+    du = _grid(du_system())
+    packed = loop_system(read_system(PACKAGE_SYSTEMS / "paper-du.fis"),
+                         grid=False).kernel_args()
     cases: list[tuple[object, object, str, str]] = [
         (du[0] + 2**31, du[1], "double", "int32"),
         (du[0], np.r_[du[1][:7], 0.0][:7], "double", "8 lims"),
@@ -930,7 +940,7 @@ def test_bad_tables_are_refused_in_one_line() -> None:
 
 
 def test_names_the_generator_uses_are_accepted() -> None:
-    du, al = du_system().kernel_args(), alpha_system().kernel_args()
+    du, al = _grid(du_system()), _grid(alpha_system())
     text = emit_pair("fs_sys", du, al, real="float")
     assert "static void fs_sys(fs_real x1, fs_real x2, fs_real *du, fs_real *alpha)" in text
     assert "fs_grid_pair(x1, x2, fs_sys_du_rules, 7, 7" in text
@@ -939,7 +949,8 @@ def test_names_the_generator_uses_are_accepted() -> None:
 
 
 def test_scratch_sizes_cover_every_path() -> None:
-    packed = loop_system(read_system(PACKAGE_SYSTEMS / "paper-du.fis")).kernel_args()[0][0]
+    packed = loop_system(read_system(PACKAGE_SYSTEMS / "paper-du.fis"),
+                         grid=False).kernel_args()[0][0]
     assert scratch_sizes(packed) == (2 + (2 + 14 + 7 + 8), packed[general.H_IWORK], 0,
                                      packed[general.H_WORK] + 2 + 1)
     smooth = compile_system(SMOOTH).ints

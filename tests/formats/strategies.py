@@ -40,7 +40,7 @@ import fuzzyservo.formats.fis  # noqa: F401
 from fuzzyservo.errors import FormatError, ParameterError
 from fuzzyservo.formats import fcl, fll
 from fuzzyservo.formats.io import dumps, loads
-from fuzzyservo.fuzzy.general import evaluate
+from fuzzyservo.fuzzy import evaluate
 from fuzzyservo.fuzzy.system import (
     AGGREGATIONS,
     AND_OPS,

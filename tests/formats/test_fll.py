@@ -5,7 +5,7 @@ definitions (fuzzylite's term classes, checked with its CLI where they differ fr
 naming); fuzzylite 6's CLI is the independent reader and evaluator
 (tests/formats/fuzzylite_oracle.py): it reads the hand-written files in tests/formats/data/fll/
 and fuzzylite's own published examples, and its values at a centroid resolution of 10^6 are
-compared with :func:`fuzzyservo.fuzzy.general.evaluate` on what :func:`parse` read.
+compared with :func:`fuzzyservo.fuzzy.evaluate` on what :func:`parse` read.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from fuzzyservo.formats.fll import (
     dump,
     parse,
 )
-from fuzzyservo.fuzzy import general
+from fuzzyservo.fuzzy import evaluate, general
 from fuzzyservo.fuzzy.system import (
     And,
     Consequent,
@@ -620,7 +620,7 @@ def test_nonstandard_not_is_written_with_the_same_value() -> None:
     back = parse(dump(s2))
     assert [r.antecedent for r in back.rules] == [Is(0, 0, negated=True), Is(0, 1)]
     x = np.linspace(-1.0, 11.0, 25)[:, None] * np.ones((1, 2)) * np.array([1.0, 0.1])
-    np.testing.assert_array_equal(general.evaluate(back, x), general.evaluate(s2, x))
+    np.testing.assert_array_equal(evaluate(back, x), evaluate(s2, x))
 
 
 REFUSED = [
@@ -785,12 +785,12 @@ def oracle_points(system: FuzzySystem, n: int, seed: int, maxima: bool) -> np.nd
 
 def check_against_fuzzylite(text: str, system: FuzzySystem, n: int, seed: int,
                             maxima: bool = False) -> list[float]:
-    """Compare fuzzylite at resolution 10^6 with general.evaluate; the worst error per output
+    """Compare fuzzylite at resolution 10^6 with evaluate; the worst error per output
     as a fraction of its range."""
     x = oracle_points(system, n, seed, maxima)
     names, fl = fuzzylite_eval(text, "fll", [v.name for v in system.inputs], x, RESOLUTION)
     assert names == [v.name for v in system.outputs]
-    ours = general.evaluate(system, x)
+    ours = evaluate(system, x)
     tol = SUGENO_TOL if system.kind == "sugeno" else MAMDANI_TOL
     worst = []
     for o, v in enumerate(system.outputs):

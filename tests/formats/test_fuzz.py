@@ -35,7 +35,7 @@ from hypothesis import strategies as st
 
 from fuzzyservo.errors import ParameterError
 from fuzzyservo.formats.io import dumps, loads
-from fuzzyservo.fuzzy.general import evaluate
+from fuzzyservo.fuzzy import evaluate
 from fuzzyservo.fuzzy.system import And, Consequent, FuzzySystem, Is, Rule, Term, Variable
 from tests.formats.strategies import (
     CODE_PAYLOADS,

@@ -9,7 +9,7 @@ Sources of truth, strongest first:
   1.1e-16 relative; 1e-12 is the module's stated accuracy);
 - mpmath at 30 digits (``mp_outputs``) for smooth terms and probabilistic-sum aggregation:
   within 1e-10 of the output range (the module's stated accuracy for adaptive quadrature);
-- the existing exact engine for the paper's systems (agreement to 1e-13 at 10^5 points: both
+- the uniform-grid engine for the paper's systems (agreement to 1e-13 at 10^5 points: both
   are exact, the difference is rounding);
 - scikit-fuzzy on a fine universe, within its sampling error bound (stated at the test).
 
@@ -31,13 +31,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from fuzzyservo._typing import ArrayLike, FloatArray
 from fuzzyservo.errors import InputError, ParameterError
-from fuzzyservo.fuzzy import general
+from fuzzyservo.fuzzy import engine, general
+from fuzzyservo.fuzzy.engine import PackedSystem, pack
 from fuzzyservo.fuzzy.general import (
     compile_system,
     eval_batch,
     eval_first2,
-    evaluate,
     membership,
 )
 from fuzzyservo.fuzzy.system import (
@@ -51,7 +52,6 @@ from fuzzyservo.fuzzy.system import (
     Rule,
     Term,
     Variable,
-    from_mamdani,
 )
 from fuzzyservo.paper import alpha_system, du_system
 from tests.fuzzy.general_reference import (
@@ -62,6 +62,17 @@ from tests.fuzzy.general_reference import (
     mp_outputs,
     pl_mu,
 )
+
+
+def evaluate(system: FuzzySystem | PackedSystem, x: ArrayLike, *,
+             parallel: bool = False) -> FloatArray:
+    """:func:`fuzzyservo.fuzzy.evaluate` by the general evaluator, the subject of this file
+    (a system is packed with ``grid=False``: never the uniform grid)."""
+    if isinstance(system, FuzzySystem):
+        system = pack(system, grid=False)
+    assert system.compiled is not None
+    return engine.evaluate(system, x, parallel=parallel)
+
 
 EXACT_TOL = 1e-12  # of the output range: the module's claim for exact outputs
 SMOOTH_TOL = 1e-10  # of the output range: the module's claim for quadrature
@@ -804,17 +815,18 @@ def test_one_rule_one_term() -> None:
 
 
 # ---------------------------------------------------------------------------------------------
-# the paper's systems: the existing exact engine
+# the paper's systems: the uniform-grid engine
 
 
 @pytest.mark.parametrize("make", [du_system, alpha_system])
 def test_paper_systems_agree_with_the_exact_engine(make: object) -> None:
-    mamdani = make()  # type: ignore[operator]
-    system = from_mamdani(mamdani)
+    system = make()  # type: ignore[operator]
+    grid = pack(system)
+    assert grid.path == "uniform grid"
     rng = np.random.default_rng(2012)
     e, de = rng.uniform(-1.2, 1.2, (2, 100_000))  # beyond the ranges too (clipped)
     ours = evaluate(system, np.column_stack([e, de]))[:, 0]
-    theirs = mamdani.evaluate(e, de)
+    theirs = engine.evaluate(grid, np.column_stack([e, de]))[:, 0]
     # both exact: the difference is rounding (measured 2e-15)
     assert np.max(np.abs(ours - theirs)) <= 1e-13
 
@@ -1093,15 +1105,18 @@ def test_memberships_of_nan_and_shapes() -> None:
 
 def test_batch_parallel_point_and_first2_agree() -> None:
     system = dataclasses.replace(FIXED, defuzzifier="bisector")
-    comp = compile_system(system)
+    packed = pack(system)
+    comp = packed.compiled
+    assert comp is not None
     pts = np.random.default_rng(4).uniform([-1.2, -0.5], [1.2, 4.5], (3000, 2))
-    serial = evaluate(comp, pts)
-    assert np.array_equal(evaluate(comp, pts, parallel=True), serial, equal_nan=True)
+    serial = evaluate(packed, pts)
+    assert np.array_equal(evaluate(packed, pts, parallel=True), serial, equal_nan=True)
+    assert np.array_equal(engine.evaluate(system, pts), serial, equal_nan=True)
     out = np.empty_like(serial)
     eval_batch(comp.ints, comp.floats, pts, out)
     assert np.array_equal(out, serial, equal_nan=True)
     for k in range(0, 3000, 300):
-        assert np.array_equal(evaluate(comp, pts[k]), serial[k], equal_nan=True)
+        assert np.array_equal(evaluate(packed, pts[k]), serial[k], equal_nan=True)
         first = eval_first2(pts[k, 0], pts[k, 1], comp.ints, comp.floats)
         assert first == serial[k, 0] or (math.isnan(first) and math.isnan(serial[k, 0]))
 
@@ -1115,6 +1130,8 @@ def test_bad_inputs_are_refused() -> None:
         evaluate(FIXED, [["a", "b"]])
     with pytest.raises(ParameterError, match="FuzzySystem"):
         compile_system("not a system")  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="expected a FuzzySystem"):
+        pack("not a system")  # type: ignore[arg-type]
 
 
 @settings(max_examples=150, deadline=None, derandomize=True, database=None,
@@ -1128,8 +1145,9 @@ def test_random_rule_tables_over_partitions_are_exact(data: st.DataObject) -> No
 
 def test_the_paper_form_takes_the_fast_path_and_is_exact() -> None:
     # the test above means the fast path: check that a system of that form takes it
-    system = from_mamdani(du_system())
+    system = du_system()
     assert general.compile_system(system).ints[general.H_PART] >= 0
+    assert pack(system, grid=False).path == "partition"
     pts = np.random.default_rng(8).uniform(-1.2, 1.2, (40, 2))
     assert_exact(system, [*pts.tolist(), [1 / 3, -2 / 3], [0.0, 1.0]])
 
@@ -1149,9 +1167,9 @@ def test_probor_of_one_is_one_so_not_of_it_fires_nothing() -> None:
 def test_mean_of_maxima_of_isolated_peaks_with_a_vertical_edge() -> None:
     # the clip point of a line through a peak lands 1e-16 beside it: that sliver was taken as
     # a plateau (mom -1 instead of 0.45); the old engine's analytic case, (-1 + 1.9) / 2
-    from tests.fuzzy.test_mamdani import _system
+    from tests.fuzzy.test_table_systems import _system
 
-    s = from_mamdani(_system(defuzz="mean_of_maxima"))
+    s = _system(defuzzifier="mom")
     assert evaluate(s, [[2.0, -1.5]])[0, 0] == pytest.approx(0.45, abs=1e-15)
 
 
@@ -1160,7 +1178,7 @@ def test_a_huge_input_on_an_unclipped_partition_is_the_last_region() -> None:
     # number of vertices: for an unclipped input of 1e19 (beyond 2**63 steps) or inf that
     # conversion is undefined behaviour (a crash was reported from the C port's review; here
     # it happened to give NaN). Beyond the last vertex every x gives the last region's value.
-    base = from_mamdani(du_system())
+    base = du_system()
     e = dataclasses.replace(base.inputs[0], clip=False)
     system = dataclasses.replace(base, inputs=(e, base.inputs[1]))
     comp = general.compile_system(system)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
+from fuzzyservo.fuzzy.engine import pack
 from fuzzyservo.fuzzy.kernels import (
     eval_uniform_batch,
     eval_uniform_checked,
@@ -16,6 +17,13 @@ from fuzzyservo.fuzzy.kernels import (
 )
 from fuzzyservo.paper import alpha_system, du_system
 from tests.fuzzy.fuzzy_exact_reference import fraction_centroid
+
+
+def _grid(make) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
+    """``(rules, lims)`` of a paper system, which packs for the uniform grid."""
+    packed = pack(make())
+    assert packed.path == "uniform grid"
+    return packed.kernel_args()
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -37,7 +45,7 @@ def test_segment_integrals_match_quadrature(seed: int) -> None:
 
 @pytest.mark.parametrize("system", [du_system, alpha_system], ids=["du", "alpha"])
 def test_kernel_matches_exact_rational_centroid(system) -> None:  # type: ignore[no-untyped-def]
-    rules, lims = system().uniform_kernel_args()
+    rules, lims = _grid(system)
     rng = np.random.default_rng(7)
     pts = rng.uniform(-1.2, 1.2, (300, 2))
     # include grid nodes, label midpoints and the universe ends, where branches switch
@@ -52,14 +60,14 @@ def test_kernel_matches_exact_rational_centroid(system) -> None:  # type: ignore
 
 
 def test_kernel_clips_inputs_to_the_universe() -> None:
-    rules, lims = du_system().uniform_kernel_args()
+    rules, lims = _grid(du_system)
     assert eval_uniform_grid(5.0, -7.0, rules, lims) == eval_uniform_grid(1.0, -1.0, rules, lims)
     assert eval_uniform_grid(math.inf, 0.2, rules, lims) == eval_uniform_grid(1.0, 0.2, rules,
                                                                               lims)
 
 
 def test_kernel_nan_and_checked_variant() -> None:
-    rules, lims = du_system().uniform_kernel_args()
+    rules, lims = _grid(du_system)
     assert math.isnan(eval_uniform_grid(math.nan, 0.0, rules, lims))
     assert math.isnan(eval_uniform_checked(math.inf, 0.0, rules, lims))
     assert math.isnan(eval_uniform_checked(0.0, -math.inf, rules, lims))
@@ -67,7 +75,7 @@ def test_kernel_nan_and_checked_variant() -> None:
 
 
 def test_kernel_default_when_no_rule_fires() -> None:
-    rules, lims = du_system().uniform_kernel_args()
+    rules, lims = _grid(du_system)
     rules[:] = -1
     rules[0, 0] = 3  # only (NB, NB) -> ZO
     lims[7] = 0.25
@@ -76,7 +84,7 @@ def test_kernel_default_when_no_rule_fires() -> None:
 
 
 def test_batch_equals_scalar_kernel_bitwise() -> None:
-    rules, lims = alpha_system().uniform_kernel_args()
+    rules, lims = _grid(alpha_system)
     rng = np.random.default_rng(3)
     x1, x2 = rng.uniform(-1.2, 1.2, (2, 1000))
     out = np.empty(1000)
@@ -86,7 +94,7 @@ def test_batch_equals_scalar_kernel_bitwise() -> None:
 
 
 def test_batch_flags_the_first_non_finite_point() -> None:
-    rules, lims = du_system().uniform_kernel_args()
+    rules, lims = _grid(du_system)
     x1 = np.array([0.1, 0.2, np.inf, np.nan, 0.3])
     x2 = np.zeros(5)
     out = np.empty(5)
@@ -103,8 +111,8 @@ def test_pair_equals_two_single_evaluations() -> None:
     from fuzzyservo.fuzzy.kernels import eval_uniform_grid, eval_uniform_pair
     from fuzzyservo.paper import alpha_system, du_system
 
-    du = du_system().uniform_kernel_args()
-    al = alpha_system().uniform_kernel_args()
+    du = _grid(du_system)
+    al = _grid(alpha_system)
     # a 5 x 4 grid on other universes: the pair must locate the inputs separately
     other_rules = np.array([[0, 1, 2, 3, 4], [1, 2, 3, 4, 4], [2, 3, 4, 4, 4],
                             [-1, 0, 1, 2, 3]], dtype=np.int64)

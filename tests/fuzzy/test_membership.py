@@ -1,4 +1,5 @@
-"""Membership functions: values, non-finite inputs, parameter validation."""
+"""Membership functions (``fuzzyservo.fuzzy.membership``, the compiled values the evaluator
+uses): values against their formulas, non-finite inputs, parameter validation (Term)."""
 
 from __future__ import annotations
 
@@ -10,20 +11,36 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fuzzyservo.errors import ParameterError
-from fuzzyservo.fuzzy import (
-    Bell,
-    Gaussian,
-    LeftShoulder,
-    RightShoulder,
-    Trapezoid,
-    Triangle,
-    gauss,
-    gbell,
-    shoulder_left,
-    shoulder_right,
-    trap,
-    tri,
-)
+from fuzzyservo.fuzzy import Term, membership
+from fuzzyservo.fuzzy.shapes import PIECEWISE_LINEAR, SHAPES, SMOOTH, vertices
+
+INF = math.inf
+
+
+def tri(x: object, a: float, b: float, c: float) -> np.ndarray:
+    return membership("triangle", (a, b, c), x)
+
+
+def trap(x: object, a: float, b: float, c: float, d: float) -> np.ndarray:
+    return membership("trapezoid", (a, b, c, d), x)
+
+
+def shoulder_left(x: object, a: float, b: float) -> np.ndarray:
+    """1 for x <= a, falling linearly to 0 at b: the trapezoid open to the left."""
+    return membership("trapezoid", (-INF, a, a, b), x)
+
+
+def shoulder_right(x: object, a: float, b: float) -> np.ndarray:
+    """0 for x <= a, rising linearly to 1 at b and 1 beyond: the trapezoid open to the right."""
+    return membership("trapezoid", (a, b, b, INF), x)
+
+
+def gauss(x: object, mean: float, sigma: float) -> np.ndarray:
+    return membership("gaussian", (mean, sigma), x)
+
+
+def gbell(x: object, width: float, slope: float, center: float) -> np.ndarray:
+    return membership("bell", (center, width, slope), x)
 
 
 def test_triangle_values() -> None:
@@ -45,6 +62,13 @@ def test_trapezoid_and_shoulders() -> None:
     np.testing.assert_array_equal(shoulder_right(x, 0.0, 1.0), [0, 0, 0.5, 1, 1, 1, 1])
 
 
+def test_shapes_keep_the_input_shape_and_apply_the_height() -> None:
+    x = np.array([[-0.5, 0.0], [0.5, 2.0]])
+    got = membership("triangle", (-1.0, 0.0, 1.0), x, height=0.5)
+    assert got.shape == (2, 2) and got.dtype == np.float64
+    np.testing.assert_array_equal(got, [[0.25, 0.5], [0.25, 0.0]])
+
+
 def test_smooth_functions_against_formulas() -> None:
     x = np.linspace(-3, 3, 13)
     # a few ulp: exp of a differently rounded argument
@@ -54,45 +78,59 @@ def test_smooth_functions_against_formulas() -> None:
 
 
 @pytest.mark.parametrize(
-    ("mf", "at_minus_inf", "at_plus_inf"),
+    ("shape", "params", "at_minus_inf", "at_plus_inf"),
     [
-        (Triangle(a=-1, b=0, c=1), 0.0, 0.0),
-        (Triangle(a=0, b=0, c=1), 0.0, 0.0),
-        (Trapezoid(a=-1, b=0, c=1, d=2), 0.0, 0.0),
-        (LeftShoulder(a=0, b=1), 1.0, 0.0),
-        (RightShoulder(a=0, b=1), 0.0, 1.0),
-        (Gaussian(mean=0, sigma=1), 0.0, 0.0),
-        (Bell(a=1, b=2, c=0), 0.0, 0.0),
+        ("triangle", (-1, 0, 1), 0.0, 0.0),
+        ("triangle", (0, 0, 1), 0.0, 0.0),
+        ("trapezoid", (-1, 0, 1, 2), 0.0, 0.0),
+        ("trapezoid", (-INF, 0, 0, 1), 1.0, 0.0),  # left shoulder
+        ("trapezoid", (0, 1, 1, INF), 0.0, 1.0),  # right shoulder
+        ("gaussian", (0, 1), 0.0, 0.0),
+        ("bell", (0, 1, 2), 0.0, 0.0),
     ],
 )
-def test_non_finite_inputs(mf: object, at_minus_inf: float, at_plus_inf: float) -> None:
-    out = mf(np.array([-np.inf, np.nan, np.inf]))  # type: ignore[operator]
+def test_non_finite_inputs(shape: str, params: tuple[float, ...], at_minus_inf: float,
+                           at_plus_inf: float) -> None:
+    out = membership(shape, params, np.array([-np.inf, np.nan, np.inf]))
     assert out[0] == at_minus_inf and out[2] == at_plus_inf
     assert math.isnan(out[1])
 
 
 @pytest.mark.parametrize(
-    ("build", "match"),
+    ("shape", "params", "match"),
     [
-        (lambda: Triangle(a=1, b=0, c=2), "triangle needs"),
-        (lambda: Triangle(a=0, b=0, c=0), "triangle needs"),
-        (lambda: Triangle(a=0, b=2, c=1), "triangle needs"),
-        (lambda: Triangle(a=0, b=math.nan, c=1), "must be finite"),
-        (lambda: Trapezoid(a=0, b=2, c=1, d=3), "trapezoid needs"),
-        (lambda: LeftShoulder(a=1, b=1), "left shoulder needs"),
-        (lambda: RightShoulder(a=2, b=1), "right shoulder needs"),
-        (lambda: Gaussian(mean=0, sigma=0), "sigma must be > 0"),
-        (lambda: Bell(a=-1, b=1, c=0), "bell needs"),
+        ("triangle", (1, 0, 2), "triangle needs"),
+        ("triangle", (0, 0, 0), "triangle needs"),
+        ("triangle", (0, 2, 1), "triangle needs"),
+        ("triangle", (0, math.nan, 1), "must be finite"),
+        ("triangle", (0, 0.5, INF), "must be finite"),
+        ("trapezoid", (0, 2, 1, 3), "trapezoid needs"),
+        ("trapezoid", (-INF, 2, 1, 3), "trapezoid needs"),  # a left shoulder with b > c
+        ("trapezoid", (-INF, 0, 1, INF), "a finite or d finite"),
+        ("trapezoid", (2, 1, 1, INF), "trapezoid needs"),  # a right shoulder with a > b
+        ("gaussian", (0, 0), "sigma > 0"),
+        ("bell", (0, 0, 1), "bell needs"),
+        ("bell", (0, 1, -1), "bell needs"),
     ],
 )
-def test_bad_parameters_raise(build: object, match: str) -> None:
+def test_bad_parameters_raise(shape: str, params: tuple[float, ...], match: str) -> None:
     with pytest.raises(ParameterError, match=match):
-        build()  # type: ignore[operator]
+        Term("t", shape, params)
 
 
 def test_error_names_the_values() -> None:
-    with pytest.raises(ValueError, match=r"a=1, b=0, c=2"):
-        tri(0.0, 1, 0, 2)
+    with pytest.raises(ValueError, match=r"got \[1\.0, 0\.0, 2\.0\]"):
+        Term("t", "triangle", (1, 0, 2))
+
+
+def test_the_shape_table() -> None:
+    assert SHAPES["triangle"] == ("a", "b", "c") and SHAPES["bell"] == (
+        "center", "width", "slope")
+    assert {"triangle", "trapezoid"} <= PIECEWISE_LINEAR and "gaussian" in SMOOTH
+    assert not PIECEWISE_LINEAR & SMOOTH
+    assert vertices("trapezoid", (-INF, 0.0, 0.0, 1.0)) == ((0.0, 1.0), (0.0, 1.0), (1.0, 0.0))
+    assert vertices("triangle", (0.0, 1.0, 2.0), 0.5) == ((0.0, 0.0), (1.0, 0.5), (2.0, 0.0))
+    assert vertices("gaussian", (0.0, 1.0)) is None
 
 
 finite = st.floats(min_value=-1e6, max_value=1e6)
@@ -103,4 +141,4 @@ def test_memberships_lie_in_unit_interval(x: float, p: list[float]) -> None:
     a, b, c, d = sorted(p)
     for v in (tri(x, a, b, c), trap(x, a, b, c, d), shoulder_left(x, a, b),
               shoulder_right(x, c, d), gauss(x, a, d - a), gbell(x, d - a, 1.5, b)):
-        assert 0.0 <= float(v) <= 1.0
+        assert 0.0 <= v.item() <= 1.0

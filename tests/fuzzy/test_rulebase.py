@@ -1,4 +1,5 @@
-"""Linguistic variables and rule bases: construction, text rules, and every error case."""
+"""Uniform variables and rule tables (Variable.uniform, FuzzySystem.from_table, rule_table):
+construction and every error case."""
 
 from __future__ import annotations
 
@@ -6,81 +7,112 @@ import numpy as np
 import pytest
 
 from fuzzyservo.errors import ParameterError
-from fuzzyservo.fuzzy import LinguisticVariable, RuleBase, Triangle
+from fuzzyservo.fuzzy import And, Consequent, FuzzySystem, Is, Rule, Term, Variable
+from fuzzyservo.fuzzy.engine import grid_form
+from fuzzyservo.fuzzy.system import uniform_triangles
 from fuzzyservo.paper.rulebases import DU_TABLE, LABELS
 
-E = LinguisticVariable.uniform("e", (-1.0, 1.0), LABELS)
-DE = LinguisticVariable.uniform("de", (-1.0, 1.0), LABELS)
-DU = LinguisticVariable.uniform("du", (-1.0, 1.0), LABELS)
+E = Variable.uniform("e", (-1.0, 1.0), LABELS)
+DE = Variable.uniform("de", (-1.0, 1.0), LABELS)
+DU = Variable.uniform("du", (-1.0, 1.0), LABELS)
 
 
 def test_uniform_partition_peaks() -> None:
-    peaks = [mf.centre for _, mf in E.terms]
+    peaks = [t.params[1] for t in E.terms]
     np.testing.assert_allclose(peaks, np.linspace(-1, 1, 7), rtol=0, atol=1e-15)  # k * 1/3
-    assert E.is_uniform_triangles()
-    assert E.labels == LABELS
+    assert all(t.shape == "triangle" and t.height == 1.0 for t in E.terms)
+    assert E.terms == uniform_triangles((-1.0, 1.0), LABELS)
+    assert tuple(t.name for t in E.terms) == LABELS
+    # neighbours share their floats: a foot is the neighbour's peak
+    for left, right in zip(E.terms, E.terms[1:], strict=False):
+        assert left.params[1:] == right.params[:2]
+    # a symmetric range keeps symmetric peaks, and 0 exactly
+    assert peaks[3] == 0.0 and all(peaks[k] == -peaks[6 - k] for k in range(7))
+    assert peaks[0] == -1.0 and peaks[6] == 1.0
+    assert np.isnan(E.default) and Variable.uniform("x", (0, 1), "AB", default=0.5).default == 0.5
 
 
-def test_text_rules_equal_the_table() -> None:
-    text = "\n".join(
-        f"if e is {LABELS[i1]} and de is {LABELS[i2]} then du is {cell}"
-        for i2, row in enumerate(DU_TABLE) for i1, cell in enumerate(row)
-    )
-    from_text = RuleBase.from_text("# Fig. 3a\n\n" + text, inputs=(E, DE), output=DU)
-    from_table = RuleBase.from_table(DU_TABLE, columns=E, rows=DE, output=DU)
-    np.testing.assert_array_equal(from_text.as_table(), from_table.as_table())
+def test_explicit_rules_equal_the_table() -> None:
+    rules = [Rule(And((Is(0, i1), Is(1, i2))), (Consequent(0, LABELS.index(cell)),))
+             for i2, row in enumerate(DU_TABLE) for i1, cell in enumerate(row)]
+    listed = FuzzySystem(inputs=(E, DE), outputs=(DU,), rules=tuple(rules[::-1]))
+    from_table = FuzzySystem.from_table(DU_TABLE, columns=E, rows=DE, output=DU)
+    assert listed.rule_table() == from_table.rule_table()
+    want = [[LABELS.index(c) for c in row] for row in DU_TABLE]
+    assert from_table.rule_table() == want
+    assert (from_table.inputs, from_table.outputs) == ((E, DE), (DU,))
+    assert (from_table.and_op, from_table.implication, from_table.aggregation,
+            from_table.defuzzifier) == ("min", "min", "max", "centroid")
+    rules_, lims = grid_form(from_table)  # type: ignore[misc]
+    np.testing.assert_array_equal(rules_, want)
 
 
-def test_text_rule_may_name_one_input() -> None:
-    rb = RuleBase.from_text("IF e IS PB THEN du IS PS", inputs=(E, DE), output=DU)
-    assert rb.rules[0].antecedent == (6, -1) and rb.rules[0].consequent == 4
+def test_empty_cells_are_minus_one() -> None:
+    table = [list(r) for r in DU_TABLE]
+    table[0][0] = None  # type: ignore[call-overload]
+    table[6][2] = "-"
+    s = FuzzySystem.from_table(table, columns=E, rows=DE, output=DU)
+    assert len(s.rules) == 47
+    got = s.rule_table()
+    assert got[0][0] == -1 and got[6][2] == -1 and got[0][1] == LABELS.index("NB")
 
 
-@pytest.mark.parametrize(
-    ("text", "match"),
-    [
-        ("if e is XX and de is PS then du is NM", r"unknown label 'XX' for 'e'; allowed: NB"),
-        ("if e is NB and de is PS then du is QQ", r"unknown label 'QQ' for 'du'"),
-        ("if x is NB then du is NM", r"unknown input 'x'; allowed: e, de"),
-        ("if e is NB and e is PS then du is NM", r"input 'e' named twice"),
-        ("when e is NB then du is NM", r"is not 'if X is A"),
-        ("if e is NB then y is NM", r"consequent must read 'du is LABEL'"),
-        ("if e NB then du is NM", r"cannot read clause 'e NB'"),
-    ],
-)
-def test_bad_rule_text(text: str, match: str) -> None:
-    with pytest.raises(ParameterError, match=match):
-        RuleBase.from_text(text, inputs=(E, DE), output=DU)
+def test_rule_table_refuses_what_is_not_a_table() -> None:
+    one_input = FuzzySystem(inputs=(E, DE), outputs=(DU,),
+                            rules=(Rule(Is(0, 6), (Consequent(0, 4),)),))
+    with pytest.raises(ParameterError, match=r"rule 1 \(if e is PB then du is PS\) is not a "
+                                             r"cell of a rule table"):
+        one_input.rule_table()
+    cell = Rule(And((Is(0, 1), Is(1, 2))), (Consequent(0, 3),))
+    twice = FuzzySystem(inputs=(E, DE), outputs=(DU,), rules=(cell, cell))
+    with pytest.raises(ParameterError, match="two rules on one cell"):
+        twice.rule_table()
+    swapped = FuzzySystem(inputs=(E, DE), outputs=(DU,),
+                          rules=(Rule(And((Is(1, 2), Is(0, 1))), (Consequent(0, 3),)),))
+    with pytest.raises(ParameterError, match="is not a cell"):
+        swapped.rule_table()
+    weighted = FuzzySystem(inputs=(E, DE), outputs=(DU,), rules=(
+        Rule(And((Is(0, 1), Is(1, 2))), (Consequent(0, 3),), weight=0.5),))
+    with pytest.raises(ParameterError, match="is not a cell"):
+        weighted.rule_table()
+    three = FuzzySystem(inputs=(E, DE, Variable.uniform("w", (0, 1), "AB")), outputs=(DU,),
+                        rules=(cell,))
+    with pytest.raises(ParameterError, match="a rule table needs 2 inputs"):
+        three.rule_table()
 
 
 def test_wrong_table_shape() -> None:
     with pytest.raises(ParameterError, match=r"must have 7 rows \(de\) of 7 cells \(e\)"):
-        RuleBase.from_table(DU_TABLE[:6], columns=E, rows=DE, output=DU)
+        FuzzySystem.from_table(DU_TABLE[:6], columns=E, rows=DE, output=DU)
     with pytest.raises(ParameterError, match=r"got 7 rows of lengths \[6, 7"):
-        RuleBase.from_table([DU_TABLE[0][:6], *DU_TABLE[1:]], columns=E, rows=DE, output=DU)
+        FuzzySystem.from_table([DU_TABLE[0][:6], *DU_TABLE[1:]], columns=E, rows=DE,
+                               output=DU)
 
 
 def test_unknown_label_in_table() -> None:
     bad = [list(r) for r in DU_TABLE]
     bad[2][3] = "PX"
-    with pytest.raises(ParameterError, match=r"unknown label 'PX' for 'du'"):
-        RuleBase.from_table(bad, columns=E, rows=DE, output=DU)
+    with pytest.raises(ParameterError, match=r"variable 'du' has no term 'PX'; it has NB"):
+        FuzzySystem.from_table(bad, columns=E, rows=DE, output=DU)
 
 
 @pytest.mark.parametrize("universe", [(1.0, 1.0), (1.0, -1.0), (0.0, float("inf"))])
 def test_bad_universe(universe: tuple[float, float]) -> None:
     with pytest.raises(ParameterError, match="lo < hi"):
-        LinguisticVariable.uniform("e", universe, LABELS)
+        Variable.uniform("e", universe, LABELS)
     with pytest.raises(ParameterError, match="lo < hi"):
-        LinguisticVariable(name="e", universe=universe,
-                           terms=(("A", Triangle(a=0, b=0.5, c=1)),))
+        Variable("e", universe, (Term("A", "triangle", (0, 0.5, 1)),))
 
 
 def test_bad_names_and_duplicates() -> None:
-    t = Triangle(a=0, b=0.5, c=1)
+    t = Term("A", "triangle", (0, 0.5, 1))
     with pytest.raises(ParameterError, match="variable name 'a b'"):
-        LinguisticVariable(name="a b", universe=(0, 1), terms=(("A", t),))
-    with pytest.raises(ParameterError, match=r"repeats labels \['A'\]"):
-        LinguisticVariable(name="x", universe=(0, 1), terms=(("A", t), ("A", t)))
+        Variable("a b", (0, 1), (t,))
+    with pytest.raises(ParameterError, match="term name 'A B'"):
+        Variable.uniform("x", (0, 1), ["A B", "C"])
+    with pytest.raises(ParameterError, match=r"repeats terms \['A'\]"):
+        Variable("x", (0, 1), (t, t))
+    with pytest.raises(ParameterError, match=r"repeats terms \['A'\]"):
+        Variable.uniform("x", (0, 1), ["A", "A"])
     with pytest.raises(ParameterError, match="needs >= 2 labels"):
-        LinguisticVariable.uniform("x", (0, 1), ["A"])
+        Variable.uniform("x", (0, 1), ["A"])

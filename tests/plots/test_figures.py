@@ -14,6 +14,7 @@ from matplotlib.figure import Figure
 from matplotlib.transforms import Bbox
 
 from fuzzyservo.errors import ParameterError
+from fuzzyservo.fuzzy import evaluate
 from fuzzyservo.paper import alpha_system, du_system
 from fuzzyservo.paper.rulebases import ALPHA_LABELS, ALPHA_TABLE, DU_TABLE, LABELS
 from fuzzyservo.plots.figures import (
@@ -135,7 +136,7 @@ def test_surface_data_matches_the_system() -> None:
     data = surface_data(alpha_system(), n=9)
     assert data.value.shape == (9, 9)
     assert data.value[4, 4] == pytest.approx(1 / 18, abs=1e-15)  # centre: (ZO, ZO) -> 1/18
-    assert data.value[2, 6] == alpha_system().evaluate(data.e[6], data.de[2])
+    assert data.value[2, 6] == evaluate(alpha_system(), [data.e[6], data.de[2]])[0]
 
 
 def test_fig3_writes_its_listed_files_rules_included(tmp_path: Path) -> None:

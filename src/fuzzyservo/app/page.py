@@ -983,7 +983,7 @@ class ServoPage:
         """Draw the fuzzy systems of the controller: membership functions, control surface and
         rules (the paper's as its rule table)."""
         from ..formats import dumps, read_system
-        from ..paper import alpha_system, du_system, paper_fuzzy_system
+        from ..paper import paper_fuzzy_system
         from ..plots.figures import render_rule_table, rule_table_data
         from ..plots.systems import render_system, system_figure_data
 
@@ -998,10 +998,9 @@ class ServoPage:
                 if key not in self._figures:
                     if path is None:
                         system = paper_fuzzy_system(role)
-                        mamdani = du_system() if role == "du" else alpha_system()
                         rules: Any = pn.pane.Matplotlib(
                             render_rule_table(rule_table_data(
-                                mamdani, f"{role} rules (paper)")), dpi=64, tight=True,
+                                system, f"{role} rules (paper)")), dpi=64, tight=True,
                             format="png")
                     else:
                         system = read_system(path)

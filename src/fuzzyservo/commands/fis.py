@@ -2,7 +2,7 @@
 fuzzylite FLL files (the format is named by the file's extension, :mod:`fuzzyservo.formats`).
 
 - ``fis eval FILE (--at POINTS.csv | --grid N) [--out OUT.csv] [--no-rule-value V]``: the
-  system's exact outputs (:func:`fuzzyservo.fuzzy.general.evaluate`). POINTS.csv has a header
+  system's exact outputs (:func:`fuzzyservo.fuzzy.evaluate`). POINTS.csv has a header
   with one column per input, named as in the file, in any order (other columns are ignored;
   lines starting with ``#`` too). ``--grid N`` evaluates N points over the input's range (one
   input) or an N x N grid over the inputs' ranges (two inputs; the first input varies fastest).
@@ -18,7 +18,7 @@ fuzzylite FLL files (the format is named by the file's extension, :mod:`fuzzyser
   is refused on one line naming what, and nothing is written; OUT may not be IN. The reader's
   notes (names it had to change, values it ignored) are printed on standard error.
 - ``fis info FILE [--json]``: name, kind, operators, every variable (range, default, clip,
-  terms with their parameters named as in :data:`~fuzzyservo.fuzzy.system.SHAPES`), every rule
+  terms with their parameters named as in :data:`~fuzzyservo.fuzzy.shapes.SHAPES`), every rule
   as text and the reader's notes. ``--json`` prints one strict JSON object (RFC 8259): NaN and
   infinities are ``null`` (a NaN default is "no value"; an infinite parameter is a trapezoid
   shoulder's foot, ``a`` at -inf or ``d`` at +inf).
@@ -48,8 +48,9 @@ from .._typing import FloatArray
 from ..errors import InputError, ParameterError
 from ..files import read_csv_columns
 from ..formats import FORMATS, dumps, format_of, read_system
-from ..fuzzy.general import evaluate
-from ..fuzzy.system import SHAPES, FuzzySystem, Term, Variable
+from ..fuzzy import evaluate
+from ..fuzzy.shapes import SHAPES
+from ..fuzzy.system import FuzzySystem, Term, Variable
 from ..plots.runs import FIGURE_FORMATS
 from . import HELP
 

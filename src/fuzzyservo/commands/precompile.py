@@ -65,7 +65,8 @@ class Job:
 def controllers() -> dict[str, tuple[Any, str]]:
     """One controller per distinct compiled law: ``{name: (controller, title)}``; the
     registry's kinds in order (the first kind of each law), then the fuzzy PI on general
-    systems (the paper's systems read from the shipped .fis files) and the command schedule."""
+    systems (the paper's systems read from the shipped .fis files, packed for the general
+    evaluator) and the command schedule."""
     from importlib import resources
 
     from ..control.command import CommandSchedule
@@ -83,8 +84,10 @@ def controllers() -> dict[str, tuple[Any, str]]:
             seen.add(ctl.law.key)
             out[name] = (ctl, ctl.law.title)
     data = resources.files("fuzzyservo") / "data" / "systems"
+    # packed for the general evaluator (grid=False): as read, they would take the uniform grid
     systems = {role: loop_system(read_system(str(data / f"paper-{role}.fis")),
-                                 source=f"paper-{role}.fis") for role in ("du", "alpha")}
+                                 source=f"paper-{role}.fis", grid=False)
+               for role in ("du", "alpha")}
     for name in controller_names():
         kind = controller_kind(name)
         if kind.systems:

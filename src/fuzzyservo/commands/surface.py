@@ -2,7 +2,7 @@
 
 The system: the paper's ``du`` (Fig. 3a) or ``alpha`` (Fig. 3b), or a fuzzy-system file
 (``.fis``, ``.fcl``, ``.fll``, :func:`fuzzyservo.formats.read_system`) with two inputs, of
-which the first output is evaluated, exactly (:func:`fuzzyservo.fuzzy.general.evaluate`).
+which the first output is evaluated, exactly (:func:`fuzzyservo.fuzzy.evaluate`).
 
 Columns are named after the system's inputs: ``e`` and ``de`` for du and alpha, the file's
 two input names (in the file's order) for a file; the value column is ``value`` for both, so
@@ -36,9 +36,7 @@ from .._typing import FloatArray
 from ..errors import InputError
 from ..files import read_csv_columns
 from ..formats import FORMATS, read_system
-from ..fuzzy import MamdaniSystem
-from ..fuzzy.general import evaluate
-from ..fuzzy.system import FuzzySystem
+from ..fuzzy import FuzzySystem, evaluate
 from ..paper import alpha_system, du_system
 from ..plots.figures import membership_data, render_memberships, render_surface, surface_data
 from ..plots.runs import FIGURE_FORMATS
@@ -214,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
     _check_outputs(args)
     if args.system_file is not None:
         return _run_file(args, args.system_file)
-    system: MamdaniSystem = SYSTEMS[args.system]()
+    system = SYSTEMS[args.system]()
     if args.out is not None:
         if args.at is not None:
             e, de = read_points_csv(args.at)
@@ -222,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
             g = np.linspace(-1.0, 1.0, args.grid)
             ee, dd = np.meshgrid(g, g)
             e, de = ee.ravel(), dd.ravel()
-        write_values_csv(args.out, e, de, system.evaluate(e, de))
+        write_values_csv(args.out, e, de, evaluate(system, np.column_stack([e, de]))[:, 0])
     if args.plot is not None:
         n = args.grid if args.grid is not None else 81
         _save(render_surface(surface_data(system, n, f"{args.system}(e, Δe)")), args.plot)

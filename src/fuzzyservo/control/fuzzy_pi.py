@@ -25,13 +25,13 @@ from pathlib import Path
 from typing import Any, ClassVar, Literal, Protocol, Self
 
 import numpy as np
-from numba.np.numpy_support import carray
 
-from .._jit import data_pointer, kernel, specialize, template
+from .._jit import kernel, specialize, template
 from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
-from ..fuzzy.general import MAGIC, eval_first2
+from ..fuzzy.engine import SystemTable, check_packed, eval_system, pack, system_table
 from ..fuzzy.kernels import GridTable, grid_eval, grid_pair, grid_table
+from ..fuzzy.system import FuzzySystem
 from .law import Field, Law, LawController, indices
 
 __all__ = [
@@ -41,9 +41,6 @@ __all__ = [
     "FuzzyPIController",
     "FuzzyPIState",
     "KernelSystem",
-    "SystemTable",
-    "eval_system",
-    "system_table",
 ]
 
 #: The law's packed parameters (:data:`FUZZY_PI_LAW`).
@@ -85,34 +82,6 @@ FUZZY_GAIN_NAMES: tuple[str, ...] = tuple(f.name for f in GAINS)
 
 P = indices("FuzzyPIParams", PARAMS)
 S = indices("FuzzyPIStateIndex", STATE)
-
-#: A fuzzy system as the general variant's step takes it (:func:`system_table`).
-SystemTable = tuple[int, GridTable, Any, int, Any, int]
-
-
-@kernel(inline=True)
-def system_table(rules: IntArray, lims: FloatArray) -> SystemTable:
-    """A fuzzy system in kernel form as one value the step takes (the arrays must outlive
-    it): ``(general, grid table, packed integers, their count, packed floats, their count)``;
-    ``general`` is 1 for a packed system (rules (1, N), C-contiguous, as ``_tables`` makes
-    them), whose grid table is a placeholder, else 0."""
-    rp = data_pointer(rules)
-    lp = data_pointer(lims)
-    if rules.shape[0] == 1:
-        return (1, (rp, 2, 2, 0, 0, -1.0, 1.0, -1.0, 1.0, 0.0, 1.0, 2, 0.0), rp,
-                rules.shape[1], lp, lims.shape[0])
-    return (0, grid_table(rules, lims), rp, 0, lp, 0)
-
-
-@kernel(error_model="numpy")
-def eval_system(x1: float, x2: float, tab: SystemTable) -> float:
-    """A fuzzy system (:func:`system_table`) at (x1, x2): the uniform-grid path for a rule
-    table, the general evaluator for a packed system (:meth:`fuzzyservo.fuzzy.general.
-    CompiledSystem.kernel_args`)."""
-    if tab[0] == 1:
-        return eval_first2(x1, x2, carray(tab[2], tab[3]), carray(tab[4], tab[5]))
-    return grid_eval(x1, x2, tab[1])
-
 
 # --- the two ways of evaluating the systems (one call site per system per sample) ----------
 
@@ -226,12 +195,12 @@ FUZZY_PI_GENERAL_LAW = Law(name="fuzzy_pi_general", title="the fuzzy PI (general
 
 
 class KernelSystem(Protocol):
-    """A two-input fuzzy system the compiled loops can evaluate: a
-    :class:`~fuzzyservo.fuzzy.MamdaniSystem` (``fuzzyservo.paper``'s) or a compiled
-    :class:`~fuzzyservo.fuzzy.system.FuzzySystem` (e.g. read from a file)."""
+    """A two-input fuzzy system packed for the compiled loops: a
+    :class:`~fuzzyservo.fuzzy.engine.PackedSystem` or a
+    :class:`~fuzzyservo.fuzzy.loop.LoopSystem` (``fuzzyservo.fuzzy.loop_system``)."""
 
     def kernel_args(self) -> tuple[Any, Any]:
-        """Return ``(rules, lims)`` for :func:`eval_system`."""
+        """Return ``(rules, lims)`` for :func:`fuzzyservo.fuzzy.engine.eval_system`."""
         ...
 
 
@@ -246,22 +215,8 @@ class FuzzyPIState:
     alpha: float = 1.0  #: last gain-updating factor α [-]
 
 
-def _tables(rules: Any, lims: Any, what: str) -> tuple[IntArray, FloatArray]:
-    r = np.ascontiguousarray(rules, dtype=np.int64)
-    m = np.ascontiguousarray(lims, dtype=np.float64)
-    if r.ndim == 2 and r.shape[0] == 1:
-        if r.shape[1] < 2 or r[0, 0] != MAGIC or r[0, 1] != 2 or m.ndim != 1:
-            raise ParameterError(f"{what}: a packed fuzzy system for a loop needs two inputs "
-                                 f"(e, de) (fuzzyservo.fuzzy.general.compile_system)")
-        return r, m
-    if r.ndim != 2 or min(r.shape) < 2 or m.shape != (8,) or not np.all(np.isfinite(m[:7])):
-        raise ParameterError(
-            f"{what} tables need rules (n2, n1 >= 2) and 8 lims (first 7 finite), "
-            f"got rules {r.shape}, lims {m.shape}")
-    n_out = int(m[6])
-    if np.any((r < -1) | (r >= n_out)):
-        raise ParameterError(f"{what} rules must be -1 or 0..{n_out - 1}")
-    return r, m
+def _kernel_args(system: FuzzySystem | KernelSystem) -> tuple[Any, Any]:
+    return (pack(system) if isinstance(system, FuzzySystem) else system).kernel_args()
 
 
 def _empty_rules() -> IntArray:
@@ -338,22 +293,25 @@ class FuzzyPIController(LawController):
         if not (math.isfinite(self.filter_time) and self.filter_time >= 0.0):
             raise ParameterError(
                 f"filter_time must be finite and >= 0 s, got {self.filter_time!r}")
-        r, m = _tables(self.du_rules, self.du_lims, "du")
+        r, m = check_packed(self.du_rules, self.du_lims, "du")
         object.__setattr__(self, "du_rules", r)
         object.__setattr__(self, "du_lims", m)
-        r, m = _tables(self.alpha_rules, self.alpha_lims, "alpha")
+        r, m = check_packed(self.alpha_rules, self.alpha_lims, "alpha")
         object.__setattr__(self, "alpha_rules", r)
         object.__setattr__(self, "alpha_lims", m)
 
     @classmethod
-    def from_systems(cls, du_system: KernelSystem, alpha_system: KernelSystem | None = None,
+    def from_systems(cls, du_system: FuzzySystem | KernelSystem,
+                     alpha_system: FuzzySystem | KernelSystem | None = None,
                      **options: Any) -> Self:
-        """Build from two-input fuzzy systems (:class:`KernelSystem`): ``fuzzyservo.paper``'s
-        ``du_system()`` and ``alpha_system()`` (the uniform-grid fast path), or systems read
-        from files and compiled (the general evaluator); ``options`` are the other fields."""
-        du_rules, du_lims = du_system.kernel_args()
+        """Build from two-input fuzzy systems: ``fuzzyservo.paper``'s ``du_system()`` and
+        ``alpha_system()``, systems read from files, or either packed (:class:`KernelSystem`);
+        a :class:`~fuzzyservo.fuzzy.system.FuzzySystem` is packed here
+        (:func:`fuzzyservo.fuzzy.engine.pack`: the uniform grid when it has that form, the
+        general evaluator otherwise); ``options`` are the other fields."""
+        du_rules, du_lims = _kernel_args(du_system)
         if alpha_system is not None:
-            a_rules, a_lims = alpha_system.kernel_args()
+            a_rules, a_lims = _kernel_args(alpha_system)
             options = {**options, "alpha_rules": a_rules, "alpha_lims": a_lims}
         return cls(du_rules=du_rules, du_lims=du_lims, **options)
 

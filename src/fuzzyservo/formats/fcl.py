@@ -104,6 +104,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 from ..errors import FormatError, ParameterError
+from ..fuzzy.shapes import PIECEWISE_LINEAR, SHAPE_TABLE
 from ..fuzzy.system import (
     And,
     Consequent,
@@ -247,33 +248,22 @@ _METHOD_NAMES = "COG, COGS, COA, LM, RM, MM"
 #: Term shape keywords: lower-case name -> (model shape, number of parameters (None: any),
 #: accepts fuzzylite's trailing height, Sugeno class).
 _SHAPE_WORDS: dict[str, tuple[str, int | None, bool]] = {
-    "trian": ("triangle", 3, False), "trape": ("trapezoid", 4, False),
-    "gauss": ("gaussian", 2, False), "gauss2": ("gaussian2", 4, False),
-    "gbell": ("bell", 3, False), "sigm": ("sigmoid", 2, False),
-    "triangle": ("triangle", 3, True), "trapezoid": ("trapezoid", 4, True),
-    "rectangle": ("rectangle", 2, True), "ramp": ("ramp", 2, True),
-    "discrete": ("discrete", None, True), "gaussian": ("gaussian", 2, True),
-    "gaussianproduct": ("gaussian2", 4, True), "bell": ("bell", 3, True),
-    "sigmoid": ("sigmoid", 2, True), "sigmoiddifference": ("dsigmoid", 4, True),
-    "sigmoidproduct": ("psigmoid", 4, True), "pishape": ("pi", 4, True),
-    "sshape": ("s", 2, True), "zshape": ("z", 2, True),
-    "constant": ("constant", 1, False), "linear": ("linear", None, False),
+    **{s.fcl_short: (s.name, len(s.params or ()), False)
+       for s in SHAPE_TABLE if s.fcl_short is not None},
+    **{s.fll.lower(): (s.name, None if s.params is None else len(s.params),
+                       s.family != "sugeno")
+       for s in SHAPE_TABLE if s.fll is not None},
 }
 _SHAPE_NAMES = ("point lists, a number (singleton), TRIAN, TRAPE, GAUSS, GAUSS2, GBELL, SIGM, "
                 "Triangle, Trapezoid, Rectangle, Ramp, Discrete, Gaussian, GaussianProduct, "
                 "Bell, Sigmoid, SigmoidDifference, SigmoidProduct, PiShape, SShape, ZShape, "
                 "Constant, Linear")
-_SUGENO_WORDS = frozenset({"constant", "linear"})
+_SUGENO_WORDS = frozenset(s.fll.lower() for s in SHAPE_TABLE
+                          if s.family == "sugeno" and s.fll is not None)
 
 # fuzzylite class names written for each model shape (parameters in the model's order except
 # where noted in _write_term)
-_CLASS_OF = {"triangle": "Triangle", "trapezoid": "Trapezoid", "rectangle": "Rectangle",
-             "ramp": "Ramp", "discrete": "Discrete", "gaussian": "Gaussian",
-             "gaussian2": "GaussianProduct", "bell": "Bell", "sigmoid": "Sigmoid",
-             "dsigmoid": "SigmoidDifference", "psigmoid": "SigmoidProduct", "pi": "PiShape",
-             "s": "SShape", "z": "ZShape", "constant": "Constant", "linear": "Linear"}
-
-_PIECEWISE = frozenset({"triangle", "trapezoid", "rectangle", "ramp", "discrete"})
+_CLASS_OF = {s.name: s.fll for s in SHAPE_TABLE if s.fll is not None}
 
 
 # --------------------------------------------------------------------------------------------
@@ -1194,7 +1184,7 @@ def _write_term(system: FuzzySystem, v: Variable, t: Term, role: str) -> str:
                              f"(a {t.shape} has no height in FCL)")
     if t.shape == "singleton":
         return fmt_float(t.params[0])
-    if t.shape in _PIECEWISE and t.height == 1.0:
+    if t.shape in PIECEWISE_LINEAR and t.height == 1.0:
         if t.shape == "discrete":
             pts = tuple(zip(t.params[0::2], t.params[1::2], strict=True))
         else:

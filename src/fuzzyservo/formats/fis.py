@@ -13,7 +13,7 @@ Reading
 - With or without a ``Version=`` line; spaces around ``=`` and ``:`` (old files); values quoted
   with ``'`` or bare; comments from ``%`` or ``#`` (outside quotes) to the end of the line;
   byte-order mark and CRLF. Sections may come in any order; each must appear once.
-- Membership functions and their order in the model (:data:`~fuzzyservo.fuzzy.system.SHAPES`):
+- Membership functions and their order in the model (:data:`~fuzzyservo.fuzzy.shapes.SHAPES`):
   ``trimf [a b c]`` triangle, ``trapmf [a b c d]`` trapezoid (``-inf`` / ``inf`` feet read as
   shoulders), ``gaussmf [sigma c]`` gaussian (c, sigma), ``gauss2mf [s1 c1 s2 c2]`` gaussian2
   (c1, s1, c2, s2), ``gbellmf [a b c]`` bell (c, a, b), ``sigmf [a c]`` sigmoid (c, a),
@@ -94,6 +94,7 @@ import re
 from dataclasses import dataclass, field
 
 from ..errors import FormatError, ParameterError
+from ..fuzzy.shapes import SHAPE_TABLE, SUGENO
 from ..fuzzy.system import (
     AggregationOp,
     And,
@@ -123,27 +124,12 @@ MAX_VARIABLES = 1000
 MAX_TERMS = 10_000
 
 #: MATLAB name -> (model shape, number of values or None for variable, permutation: model
-#: parameter i is file value ``perm[i]``; None: same order).
+#: parameter i is file value ``perm[i]``; None: same order), from the shape table.
 _MF: dict[str, tuple[str, int | None, tuple[int, ...] | None]] = {
-    "trimf": ("triangle", 3, None),
-    "trapmf": ("trapezoid", 4, None),
-    "gaussmf": ("gaussian", 2, (1, 0)),
-    "gauss2mf": ("gaussian2", 4, (1, 0, 3, 2)),
-    "gbellmf": ("bell", 3, (2, 0, 1)),
-    "sigmf": ("sigmoid", 2, (1, 0)),
-    "dsigmf": ("dsigmoid", 4, (1, 0, 2, 3)),
-    "psigmf": ("psigmoid", 4, (1, 0, 2, 3)),
-    "pimf": ("pi", 4, None),
-    "smf": ("s", 2, None),
-    "zmf": ("z", 2, None),
-    "constant": ("constant", 1, None),
-    "linear": ("linear", None, None),
-    "rampmf": ("ramp", 2, None),
-    "rectmf": ("rectangle", 2, None),
-    "discretemf": ("discrete", None, None),
-}
+    s.fis: (s.name, None if s.params is None else len(s.params), s.fis_order)
+    for s in SHAPE_TABLE if s.fis is not None}
 #: Membership functions only fuzzylite defines: read with fuzzylite's meaning, never written.
-_FUZZYLITE_ONLY = ("rampmf", "rectmf", "discretemf")
+_FUZZYLITE_ONLY = tuple(s.fis for s in SHAPE_TABLE if s.fis is not None and not s.fis_written)
 _WRITE_MF = {shape: name for name, (shape, _, _) in _MF.items() if name not in _FUZZYLITE_ONLY}
 
 _KIND: dict[str, Kind] = {"mamdani": "mamdani", "sugeno": "sugeno"}
@@ -541,7 +527,7 @@ class _Reader:
         tname = self.name(raw, f"mf{k}", f"{where} term")
         shape, n, perm = _MF[mf]
         height = 1.0
-        sugeno_shape = shape in ("constant", "linear")
+        sugeno_shape = shape in SUGENO
         if is_out and sys_kind == "sugeno" and not sugeno_shape:
             raise self.err(off + tstart, f"{where}: a sugeno output needs constant or linear, "
                                          f"found {mf}")

@@ -102,6 +102,7 @@ from dataclasses import dataclass, field
 from typing import cast
 
 from ..errors import FormatError, ParameterError
+from ..fuzzy.shapes import SHAPE_TABLE, SUGENO
 from ..fuzzy.system import (
     AggregationOp,
     And,
@@ -137,24 +138,11 @@ MAX_VARIABLES = 1024
 WRITE_RESOLUTION = 10_000
 
 #: FLL term class -> (model shape, number of parameters before the optional height; None:
-#: variable).
+#: variable), from the shape table; fuzzylite's Binary (start, direction) is read as a
+#: shoulder trapezoid.
 _CLASSES: dict[str, tuple[str, int | None]] = {
-    "Triangle": ("triangle", 3),
-    "Trapezoid": ("trapezoid", 4),
-    "Rectangle": ("rectangle", 2),
-    "Ramp": ("ramp", 2),
-    "Discrete": ("discrete", None),
-    "Gaussian": ("gaussian", 2),
-    "GaussianProduct": ("gaussian2", 4),
-    "Bell": ("bell", 3),
-    "Sigmoid": ("sigmoid", 2),
-    "SigmoidDifference": ("dsigmoid", 4),
-    "SigmoidProduct": ("psigmoid", 4),
-    "PiShape": ("pi", 4),
-    "SShape": ("s", 2),
-    "ZShape": ("z", 2),
-    "Constant": ("constant", 1),
-    "Linear": ("linear", None),
+    **{s.fll: (s.name, None if s.params is None else len(s.params))
+       for s in SHAPE_TABLE if s.fll is not None},
     "Binary": ("trapezoid", 2),
 }
 _SHAPE_CLASS = {shape: cls for cls, (shape, _) in _CLASSES.items() if cls != "Binary"}
@@ -468,7 +456,7 @@ def _defuzzifier(src: Source, var: _Var, notes: list[str]) -> str:
         if kind not in ("TakagiSugeno", "Automatic", "Tsukamoto"):
             raise src.error(toks[1].off, f"{cls.text}: expected TakagiSugeno, Automatic or "
                                          f"Tsukamoto, found {kind!r}")
-        sugeno = all(t.shape in ("constant", "linear") for t in var.terms)
+        sugeno = all(t.shape in SUGENO for t in var.terms)
         if kind == "Tsukamoto" or (kind == "Automatic" and var.terms and not sugeno):
             at = toks[1].off if len(toks) == 2 else cls.off
             raise src.error(at, f"unsupported defuzzifier: {cls.text} Tsukamoto (supported: "
@@ -762,7 +750,7 @@ def parse(text: str, source: str = "<string>") -> FuzzySystem:
     n_in = len(inputs)
     for var in outputs:
         for t, ln in zip(var.terms, var.term_lines, strict=True):
-            sugeno_term = t.shape in ("constant", "linear")
+            sugeno_term = t.shape in SUGENO
             if kind == "sugeno" and not sugeno_term:
                 raise src.error(ln.val_off, f"Sugeno output {var.name!r} term {t.name!r}: "
                                             f"needs Constant or Linear, got {t.shape}")
@@ -856,7 +844,7 @@ def _term_line(kind: str, var: Variable, t: Term) -> str:
     cls = _SHAPE_CLASS[t.shape]
     values = [fmt_float(p) for p in t.params]
     if t.height != 1.0:
-        if t.shape in ("constant", "linear"):
+        if t.shape in SUGENO:
             raise ParameterError(f"FLL cannot hold term height {fmt_float(t.height)} of {kind} "
                                  f"{var.name!r} term {t.name!r}: {cls} has no height")
         values.append(fmt_float(t.height))

@@ -1,46 +1,43 @@
-"""fuzzyservo.fuzzy: membership functions, rule bases, Mamdani systems, compiled kernels."""
+"""fuzzyservo.fuzzy: the fuzzy model (FuzzySystem), its membership shapes, and one exact engine.
+
+- :mod:`.system`: the model, frozen data (variables, terms, rules, operators) and its builders
+  (:meth:`Variable.uniform`, :meth:`FuzzySystem.from_table`);
+- :mod:`.shapes`: the table of membership shapes every module reads;
+- :mod:`.engine`: :func:`pack` (chooses the evaluation path) and :func:`evaluate`, the same
+  compiled code the controllers' loops run; :mod:`.kernels` (uniform grid), :mod:`.partition`
+  and :mod:`.general` are its paths;
+- :mod:`.loop`: a system checked and packed for a controller's loop.
+"""
 
 from __future__ import annotations
 
+from .engine import PackedSystem, evaluate, pack
+from .general import membership
 from .kernels import eval_uniform_batch, eval_uniform_grid, eval_uniform_pair
-from .mamdani import MamdaniSpec, MamdaniSystem
-from .membership import (
-    Bell,
-    Gaussian,
-    LeftShoulder,
-    MembershipFunction,
-    RightShoulder,
-    Trapezoid,
-    Triangle,
-    gauss,
-    gbell,
-    shoulder_left,
-    shoulder_right,
-    trap,
-    tri,
-)
-from .rulebase import LinguisticVariable, Rule, RuleBase
+from .loop import LoopSystem, loop_system, system_digest
+from .shapes import SHAPE_TABLE, Shape
+from .system import And, Consequent, FuzzySystem, Is, Not, Or, Rule, Term, Variable
 
 __all__ = [
-    "Bell",
-    "Gaussian",
-    "LeftShoulder",
-    "LinguisticVariable",
-    "MamdaniSpec",
-    "MamdaniSystem",
-    "MembershipFunction",
-    "RightShoulder",
+    "SHAPE_TABLE",
+    "And",
+    "Consequent",
+    "FuzzySystem",
+    "Is",
+    "LoopSystem",
+    "Not",
+    "Or",
+    "PackedSystem",
     "Rule",
-    "RuleBase",
-    "Trapezoid",
-    "Triangle",
+    "Shape",
+    "Term",
+    "Variable",
     "eval_uniform_batch",
     "eval_uniform_grid",
     "eval_uniform_pair",
-    "gauss",
-    "gbell",
-    "shoulder_left",
-    "shoulder_right",
-    "trap",
-    "tri",
+    "evaluate",
+    "loop_system",
+    "membership",
+    "pack",
+    "system_digest",
 ]

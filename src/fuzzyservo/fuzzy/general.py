@@ -2,8 +2,9 @@
 
 One implementation serves every caller: :func:`compile_system` packs a system once into two
 flat arrays (``ints``, ``floats``), and the compiled functions below evaluate them: point by
-point from Python (:func:`evaluate`), in batches, and inside the controllers' compiled loops
-(:func:`eval_first2`, through ``fuzzyservo.control.fuzzy_pi``).
+point, in batches (:func:`fuzzyservo.fuzzy.engine.evaluate`, which also chooses this
+evaluator or the uniform grid) and inside the controllers' compiled loops (:func:`eval_first2`,
+through :func:`fuzzyservo.fuzzy.engine.eval_system`).
 
 How each output is defuzzified (docs/fuzzy-files.md, "Exactness"):
 
@@ -41,20 +42,22 @@ import numpy as np
 
 from .._jit import kernel
 from .._typing import ArrayLike, FloatArray, IntArray
-from ..errors import InputError, ParameterError
+from ..errors import ParameterError
+from .kernels import insort
 from .partition import eval_partition, partition_tables, scratch_sizes
-from .system import SHAPES, And, Expr, FuzzySystem, Is, Not, Or
+from .shapes import PIECEWISE_LINEAR, SHAPE_TABLE
+from .system import And, Expr, FuzzySystem, Is, Not, Or
 
 __all__ = [
     "CompiledSystem",
     "compile_system",
     "eval_batch",
     "eval_first2",
-    "evaluate",
+    "eval_parallel",
     "membership",
 ]
 
-SHAPE_CODE: dict[str, int] = {name: i for i, name in enumerate(SHAPES)}
+SHAPE_CODE: dict[str, int] = {s.name: s.code for s in SHAPE_TABLE}
 _TRI, _TRAP, _RECT, _RAMP, _DISC, _SING, _GAUSS, _GAUSS2, _BELL, _SIG, _DSIG, _PSIG, _S, _Z, \
     _PI, _CONST, _LIN = range(17)
 _PL_CODES = (_TRI, _TRAP, _RECT, _RAMP, _DISC)
@@ -322,7 +325,7 @@ def _output_mode(system: FuzzySystem, k: int) -> int:
     shapes = {t.shape for t in system.outputs[k].terms}
     if shapes == {"singleton"}:
         return _M_SING
-    if shapes <= {"triangle", "trapezoid", "rectangle", "ramp", "discrete"} and \
+    if shapes <= PIECEWISE_LINEAR and \
             system.aggregation != "probor":
         return _M_PL
     return _M_SMOOTH
@@ -842,16 +845,6 @@ def _items(ints: IntArray, w: FloatArray, fired: IntArray, nf: int, o: int, hts:
 
 
 @kernel(inline=True)
-def _insort(buf: FloatArray, n: int, y: float) -> int:
-    i = n
-    while i > 0 and buf[i - 1] > y:
-        buf[i] = buf[i - 1]
-        i -= 1
-    buf[i] = y
-    return n + 1
-
-
-@kernel(inline=True)
 def _agg_lines(y: float, na: int, c: FloatArray, m: FloatArray, hh: FloatArray, impl: int,
                agg: int) -> tuple[float, float]:
     """(aggregate, unclamped sum) at y of the na lines c + m y clipped / scaled by hh."""
@@ -907,11 +900,11 @@ def _pl_segments(n_items: int, lab: IntArray, h: FloatArray, f: FloatArray, bp_o
             if m[i] != 0.0:
                 y = -c[i] / m[i]
                 if p < y < q:
-                    nc = _insort(cand, nc, y)
+                    nc = insort(cand, nc, y)
                 if impl == 0:
                     y = (hh[i] - c[i]) / m[i]
                     if p < y < q:
-                        nc = _insort(cand, nc, y)
+                        nc = insort(cand, nc, y)
             if agg == 0:
                 for jj in range(na):
                     if jj == i:
@@ -920,17 +913,17 @@ def _pl_segments(n_items: int, lab: IntArray, h: FloatArray, f: FloatArray, bp_o
                         if m[i] != 0.0:
                             y = (hh[jj] - c[i]) / m[i]
                             if p < y < q:
-                                nc = _insort(cand, nc, y)
+                                nc = insort(cand, nc, y)
                         if jj > i and m[i] != m[jj]:
                             y = (c[jj] - c[i]) / (m[i] - m[jj])
                             if p < y < q:
-                                nc = _insort(cand, nc, y)
+                                nc = insort(cand, nc, y)
                     elif jj > i:
                         di = hh[i] * m[i] - hh[jj] * m[jj]
                         if di != 0.0:
                             y = (hh[jj] * c[jj] - hh[i] * c[i]) / di
                             if p < y < q:
-                                nc = _insort(cand, nc, y)
+                                nc = insort(cand, nc, y)
         # the interval's lines give the one-sided values at p and q and are continuous inside,
         # so one evaluation per candidate serves both pieces that meet there
         au, tu = _agg_lines(cand[0], na, c, m, hh, impl, agg)
@@ -1715,7 +1708,7 @@ def eval_batch(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray) ->
 
 
 @kernel(parallel=True)
-def _eval_parallel(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray,
+def eval_parallel(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray,
                    n_chunks: int) -> None:
     n = x.shape[0]
     for c in numba.prange(n_chunks):
@@ -1740,53 +1733,3 @@ def eval_first2(x1: float, x2: float, ints: IntArray, f: FloatArray) -> float:
     x[1] = x2
     eval_point(ints, f, x, out, buf[:ints[H_WORK]], np.empty(ints[H_IWORK], dtype=np.int64))
     return out[0]
-
-
-def evaluate(system: FuzzySystem | CompiledSystem, x: ArrayLike, *,
-             parallel: bool = False) -> FloatArray:
-    """Crisp outputs of a fuzzy system.
-
-    Parameters
-    ----------
-    system : FuzzySystem or CompiledSystem
-        The system (compiled here if needed: compile once with :func:`compile_system` to
-        evaluate many times).
-    x : array_like, shape (n, n_inputs) or (n_inputs,)
-        Input values, columns in the order of ``system.inputs`` [units of the inputs].
-    parallel : bool
-        Spread the points over the cores.
-
-    Returns
-    -------
-    ndarray, shape (n, n_outputs) (or (n_outputs,) for one point)
-        Outputs in the order of ``system.outputs``; an output's ``default`` where no rule
-        fires for it (NaN when the default is NaN).
-
-    Raises
-    ------
-    InputError
-        If ``x`` is not numeric, has the wrong number of columns or a non-finite value.
-    """
-    comp = system if isinstance(system, CompiledSystem) else compile_system(system)
-    n_in = len(comp.system.inputs)
-    try:
-        arr = np.asarray(x, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"inputs must be numeric: {exc}") from None
-    one = arr.ndim == 1
-    pts = np.ascontiguousarray(np.atleast_2d(arr))
-    if pts.ndim != 2 or pts.shape[1] != n_in:
-        raise InputError(
-            f"inputs need shape (n, {n_in}) (columns "
-            f"{', '.join(v.name for v in comp.system.inputs)}), got {arr.shape}")
-    bad = ~np.isfinite(pts)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise InputError(
-            f"input {comp.system.inputs[j].name!r} must be finite, got {pts[i, j]!r} at row {i}")
-    out = np.empty((pts.shape[0], len(comp.system.outputs)))
-    if parallel and pts.shape[0] >= 1000:
-        _eval_parallel(comp.ints, comp.floats, pts, out, 4 * numba.get_num_threads())
-    else:
-        eval_batch(comp.ints, comp.floats, pts, out)
-    return out[0] if one else out

@@ -54,6 +54,7 @@ __all__ = [
     "grid_eval",
     "grid_pair",
     "grid_table",
+    "insort",
     "segment_integrals",
 ]
 
@@ -64,6 +65,18 @@ _SIXTH = 1.0 / 6.0
 #: A rule table in the form the inlined kernels take (:func:`grid_table`): the rules' data
 #: pointer, shape and strides, then the eight ``lims`` (``n_out`` as an int).
 GridTable = tuple[Any, int, int, int, int, float, float, float, float, float, float, int, float]
+
+
+@kernel(inline=True)
+def insort(buf: FloatArray, n: int, y: float) -> int:
+    """Insert y into the sorted buf[:n] (room for one more); return n + 1 (the exact
+    evaluators' breakpoint lists, a handful of values each)."""
+    i = n
+    while i > 0 and buf[i - 1] > y:
+        buf[i] = buf[i - 1]
+        i -= 1
+    buf[i] = y
+    return n + 1
 
 
 @kernel(inline=True, error_model="numpy")

@@ -1,9 +1,11 @@
 """A general fuzzy system in a controller's loop: two inputs (e, Δe), the first output used.
 
 :func:`loop_system` checks a :class:`~fuzzyservo.fuzzy.system.FuzzySystem` for that role and
-packs it; the result goes wherever the paper's systems go (``systems={"du": ...}`` of the
-registry, ``FuzzyPIController.from_systems``). The compiled loops then evaluate it with the
-general evaluator, point by point, exactly as :func:`fuzzyservo.fuzzy.general.evaluate` does.
+packs it (:func:`fuzzyservo.fuzzy.engine.pack`); the result goes wherever the paper's systems
+go (``systems={"du": ...}`` of the registry, ``FuzzyPIController.from_systems``). The compiled
+loops then evaluate it point by point, exactly as :func:`fuzzyservo.fuzzy.engine.evaluate`
+does (the uniform grid for a system of that form, such as the paper's read from its file; the
+general evaluator otherwise).
 
 Scaling (docs/fuzzy-files.md, "In the loop"): the system is evaluated at (K_e e, K_Δe Δe) in the
 universes its file states, and its output is multiplied by K_Δu (and α): with the paper's
@@ -26,42 +28,17 @@ from dataclasses import dataclass
 
 from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
-from .general import CompiledSystem, compile_system
+from .engine import PackedSystem, pack
+from .shapes import support
 from .system import And, FuzzySystem, Is, Term
 
 __all__ = ["LoopSystem", "always_fires", "loop_system", "system_digest"]
 
 
-def _support(t: Term) -> tuple[float, float] | None:
-    """An open interval (lo, hi) on which the term is > 0 (None if not known to be one)."""
-    s, p = t.shape, t.params
-    inf = math.inf
-    if s == "triangle":
-        return p[0], p[2]
-    if s == "trapezoid":
-        return p[0], p[3]
-    if s == "ramp":
-        a, b = p
-        if a == b:
-            return None
-        return (a, inf) if a < b else (-inf, a)
-    if s in ("gaussian", "gaussian2", "bell", "sigmoid", "psigmoid"):
-        return -inf, inf
-    if s == "s":
-        return p[0], inf
-    if s == "z":
-        return -inf, p[1]
-    if s == "pi":
-        return p[0], p[3]
-    if s == "discrete" and all(y > 0.0 for y in p[1::2]):
-        return -inf, inf
-    return None
-
-
 def _covers(terms: tuple[Term, ...], lo: float, hi: float) -> bool:
     """True if the terms' open supports cover [lo, hi] (a conservative test: a point covered
     only by a closed end of a support, e.g. a rectangle's edge, counts as uncovered)."""
-    sup = sorted(s for s in (_support(t) for t in terms) if s is not None)
+    sup = sorted(s for s in (support(t.shape, t.params) for t in terms) if s is not None)
     merged: list[list[float]] = []
     for a, b in sup:
         if merged and a < merged[-1][1]:
@@ -108,26 +85,27 @@ class LoopSystem:
 
     Attributes
     ----------
-    compiled : CompiledSystem
-        The packed system (output 0 is the one used).
+    packed : PackedSystem
+        The packed system (output 0 is the one used; :func:`fuzzyservo.fuzzy.engine.pack`).
     source : str
         Where it came from (a file name), for messages and records.
     digest : str
         :func:`system_digest` of the system.
     """
 
-    compiled: CompiledSystem  #: the packed system
+    packed: PackedSystem  #: the packed system
     source: str  #: file name or description
     digest: str  #: SHA-256 of the system's values
 
     @property
     def system(self) -> FuzzySystem:
         """The fuzzy system."""
-        return self.compiled.system
+        return self.packed.system
 
     def kernel_args(self) -> tuple[IntArray, FloatArray]:
-        """``(ints[None, :], floats)``: the general evaluator's arrays in the kernels' slots."""
-        return self.compiled.ints.reshape(1, -1).copy(), self.compiled.floats.copy()
+        """``(rules, lims)`` for the controllers' loops: the uniform-grid tables or the
+        general evaluator's arrays (:meth:`PackedSystem.kernel_args`)."""
+        return self.packed.kernel_args()
 
     def describe(self, role: str = "du") -> str:
         """One line: the inputs' and the output's universes and the gains that scale them
@@ -142,7 +120,7 @@ class LoopSystem:
 
 
 def loop_system(system: FuzzySystem, *, source: str = "<system>",
-                no_rule_value: float | None = None) -> LoopSystem:
+                no_rule_value: float | None = None, grid: bool = True) -> LoopSystem:
     """Check ``system`` for a controller's loop and pack it.
 
     Parameters
@@ -153,6 +131,9 @@ def loop_system(system: FuzzySystem, *, source: str = "<system>",
         Name shown in messages (the file).
     no_rule_value : float, optional
         Output when no rule fires, replacing a NaN default [unit of the output].
+    grid : bool
+        Let :func:`~fuzzyservo.fuzzy.engine.pack` take the uniform-grid path when the system
+        has its form (False: always the general evaluator).
 
     Raises
     ------
@@ -179,5 +160,5 @@ def loop_system(system: FuzzySystem, *, source: str = "<system>",
             f"{source}: output {out.name!r} has no value for when no rule fires (default NaN) "
             f"and its rules do not provably cover every (e, de): set a default in the file "
             f"(FCL DEFAULT, FLL default) or pass --no-rule-value")
-    return LoopSystem(compiled=compile_system(system), source=source,
+    return LoopSystem(packed=pack(system, grid=grid), source=source,
                       digest=system_digest(system))

@@ -36,7 +36,7 @@ import numpy as np
 
 from .._jit import kernel
 from .._typing import FloatArray, IntArray
-from .kernels import segment_integrals
+from .kernels import insort, segment_integrals
 from .system import And, FuzzySystem, Is, Term
 
 __all__ = ["eval_partition", "partition_tables"]
@@ -236,16 +236,6 @@ def scratch_sizes(system: FuzzySystem) -> tuple[int, int]:
 
 
 @kernel(inline=True)
-def _insort5(buf: FloatArray, n: int, y: float) -> int:
-    i = n
-    while i > 0 and buf[i - 1] > y:
-        buf[i] = buf[i - 1]
-        i -= 1
-    buf[i] = y
-    return n + 1
-
-
-@kernel(inline=True)
 def _g2(y: float, m1: float, c1: float, a: float, m2: float, c2: float, b: float,
         impl: int) -> float:
     f1 = c1 + m1 * y
@@ -282,22 +272,22 @@ def _interval(p: float, q: float, m1: float, c1: float, a: float, m2: float, c2:
             for level in (a, b):
                 y = (level - c1) / m1
                 if p < y < q:
-                    n = _insort5(cand, n, y)
+                    n = insort(cand, n, y)
         if m2 != 0.0:
             for level in (a, b):
                 y = (level - c2) / m2
                 if p < y < q:
-                    n = _insort5(cand, n, y)
+                    n = insort(cand, n, y)
         if m1 != m2 and a > 0.0 and b > 0.0:
             y = (c2 - c1) / (m1 - m2)
             if p < y < q:
-                n = _insort5(cand, n, y)
+                n = insort(cand, n, y)
     else:
         d = a * m1 - b * m2
         if d != 0.0 and a > 0.0 and b > 0.0:
             y = (b * c2 - a * c1) / d
             if p < y < q:
-                n = _insort5(cand, n, y)
+                n = insort(cand, n, y)
     cand[n] = q
     n += 1
     area = 0.0

@@ -5,8 +5,8 @@ fuzzylite FLL) produce and the writers consume, and that :mod:`fuzzyservo.fuzzy.
 compiles and evaluates exactly. Everything is a frozen dataclass; equality is value equality,
 so "write then read gives the same system" is ``read(write(s)) == s``.
 
-Terms (``Term.shape``, parameters in the order of :data:`SHAPES`; every term is scaled by its
-``height``)::
+Terms (``Term.shape``, parameters in the order of :mod:`fuzzyservo.fuzzy.shapes`, the table
+every module reads; every term is scaled by its ``height``)::
 
     triangle   a b c            0 outside [a, c], 1 at b, linear between (a == b or b == c: a
                                 vertical edge)
@@ -43,11 +43,12 @@ from __future__ import annotations
 import math
 import re
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Literal, get_args
 
 from ..errors import ParameterError
+from .shapes import SHAPES, SUGENO, shape, vertices
 
 __all__ = [
     "AGGREGATIONS",
@@ -55,9 +56,6 @@ __all__ = [
     "DEFUZZIFIERS",
     "IMPLICATIONS",
     "OR_OPS",
-    "PIECEWISE_LINEAR",
-    "SHAPES",
-    "SMOOTH",
     "And",
     "Consequent",
     "Expr",
@@ -68,35 +66,13 @@ __all__ = [
     "Rule",
     "Term",
     "Variable",
+    "uniform_triangles",
+    "walk",
 ]
 
-#: Parameter names of every term shape, in the order ``Term.params`` holds them; None means a
-#: variable number (``discrete``: x, y pairs; ``linear``: one coefficient per input, then c0).
-SHAPES: dict[str, tuple[str, ...] | None] = {
-    "triangle": ("a", "b", "c"),
-    "trapezoid": ("a", "b", "c", "d"),
-    "rectangle": ("start", "end"),
-    "ramp": ("start", "end"),
-    "discrete": None,
-    "singleton": ("x",),
-    "gaussian": ("mean", "sigma"),
-    "gaussian2": ("mean1", "sigma1", "mean2", "sigma2"),
-    "bell": ("center", "width", "slope"),
-    "sigmoid": ("inflection", "slope"),
-    "dsigmoid": ("left", "rising", "falling", "right"),
-    "psigmoid": ("left", "rising", "falling", "right"),
-    "s": ("start", "end"),
-    "z": ("start", "end"),
-    "pi": ("a", "b", "c", "d"),
-    "constant": ("value",),
-    "linear": None,
-}
-#: Shapes whose membership is piecewise linear: aggregates of them are integrated exactly.
-PIECEWISE_LINEAR = frozenset({"triangle", "trapezoid", "rectangle", "ramp", "discrete"})
-#: Shapes integrated by adaptive Gauss-Kronrod quadrature (error bound in docs/fuzzy-files.md).
-SMOOTH = frozenset({"gaussian", "gaussian2", "bell", "sigmoid", "dsigmoid", "psigmoid", "s",
-                    "z", "pi"})
-_SUGENO_TERMS = frozenset({"constant", "linear"})
+range_ = range  # the builtin, where a parameter is called range
+
+_SUGENO_TERMS = SUGENO
 
 Kind = Literal["mamdani", "sugeno"]
 AndOp = Literal["min", "product"]
@@ -131,10 +107,10 @@ class Term:
     name : str
         Label used in rules.
     shape : str
-        One of :data:`SHAPES`.
+        One of :data:`fuzzyservo.fuzzy.shapes.SHAPES`.
     params : tuple of float
-        The shape's parameters in the order of :data:`SHAPES` [unit of the variable; slopes in
-        1/unit, widths and sigmas in the unit].
+        The shape's parameters in the order of :data:`fuzzyservo.fuzzy.shapes.SHAPES` [unit of
+        the variable; slopes in 1/unit, widths and sigmas in the unit].
     height : float
         Scale of the membership, in (0, 1] (fuzzylite's term height; 1 elsewhere) [-].
     """
@@ -160,9 +136,7 @@ class Term:
             raise ParameterError(
                 f"term {self.name!r}: {self.shape} takes {len(names)} parameters "
                 f"({' '.join(names)}), got {len(p)}")
-        inf_ok = set()
-        if self.shape == "trapezoid":
-            inf_ok = {0, 3}
+        inf_ok = shape(self.shape).infinite
         for i, v in enumerate(p):
             if math.isnan(v) or (math.isinf(v) and i not in inf_ok):
                 raise ParameterError(
@@ -171,70 +145,17 @@ class Term:
         self._check_shape(p)
 
     def _check_shape(self, p: tuple[float, ...]) -> None:
-        s, n = self.shape, self.name
-
-        def need(ok: bool, what: str) -> None:
-            if not ok:
-                raise ParameterError(f"term {n!r}: {s} needs {what}, got {list(p)}")
-
-        if s == "triangle":
-            need(p[0] <= p[1] <= p[2] and p[0] < p[2], "a <= b <= c with a < c")
-        elif s == "trapezoid":
-            need(p[0] <= p[1] <= p[2] <= p[3] and p[0] < p[3]
-                 and math.isfinite(p[1]) and math.isfinite(p[2]),
-                 "a <= b <= c <= d with a < d and b, c finite")
-            need(not (p[0] == -math.inf and p[3] == math.inf), "a finite or d finite")
-        elif s == "rectangle":
-            need(p[0] <= p[1], "start <= end")
-        elif s == "discrete":
-            need(len(p) >= 4 and len(p) % 2 == 0, "at least two (x, y) pairs")
-            xs, ys = p[0::2], p[1::2]
-            need(all(b >= a for a, b in zip(xs, xs[1:], strict=False)) and xs[0] < xs[-1],
-                 "x non-decreasing and not all equal")
-            need(all(0.0 <= y <= 1.0 for y in ys), "every y in [0, 1]")
-            need(max(Counter(xs).values()) <= 2, "no x more than twice")
-        elif s in ("gaussian",):
-            need(p[1] > 0.0, "sigma > 0")
-        elif s == "gaussian2":
-            need(p[1] > 0.0 and p[3] > 0.0, "sigma1 > 0 and sigma2 > 0")
-        elif s == "bell":
-            need(p[1] != 0.0 and p[2] > 0.0, "width != 0 and slope > 0")
-        elif s in ("s", "z"):
-            need(p[0] < p[1], "start < end")
-        elif s == "pi":
-            need(p[0] < p[1] <= p[2] < p[3], "a < b <= c < d")
-        elif s == "linear":
-            need(len(p) >= 1, "at least the constant c0")
+        needs = shape(self.shape).needs
+        what = None if needs is None else needs(p)
+        if what is not None:
+            raise ParameterError(f"term {self.name!r}: {self.shape} needs {what}, got {list(p)}")
 
     @property
     def vertices(self) -> tuple[tuple[float, float], ...] | None:
         """(x, y) vertices of a piecewise-linear term (height applied), constant beyond the
-        first and last, a repeated x being a jump; None for other shapes."""
-        s, p, h = self.shape, self.params, self.height
-        if s == "triangle":
-            a, b, c = p
-            pts = [(a, 0.0), (b, h), (c, 0.0)]
-        elif s == "trapezoid":
-            a, b, c, d = p
-            pts = []
-            pts += [(b, h)] if a == -math.inf else [(a, 0.0), (b, h)]
-            pts += [(c, h)] if d == math.inf else [(c, h), (d, 0.0)]
-        elif s == "rectangle":
-            a, b = p
-            pts = [(a, 0.0), (a, h), (b, h), (b, 0.0)]
-        elif s == "ramp":
-            a, b = p
-            if a == b:
-                pts = [(a, 0.0), (a + 1.0, 0.0)]
-            elif a < b:
-                pts = [(a, 0.0), (b, h)]
-            else:
-                pts = [(b, h), (a, 0.0)]
-        elif s == "discrete":
-            pts = [(x, h * y) for x, y in zip(p[0::2], p[1::2], strict=True)]
-        else:
-            return None
-        return tuple(pts)
+        first and last, a repeated x being a jump; None for other shapes
+        (:func:`fuzzyservo.fuzzy.shapes.vertices`)."""
+        return vertices(self.shape, self.params, self.height)
 
 
 @dataclass(frozen=True, slots=True)
@@ -278,6 +199,29 @@ class Variable:
         dup = sorted(n for n, c in Counter(t.name for t in self.terms).items() if c > 1)
         if dup:
             raise ParameterError(f"variable {self.name!r} repeats terms {dup}")
+
+    @classmethod
+    def uniform(cls, name: str, range: tuple[float, float], labels: Sequence[str], *,
+                default: float = math.nan) -> Variable:
+        """Uniform triangles with 50 % overlap, peaks at lo + k (hi - lo) / (n - 1).
+
+        The end triangles peak at the range's ends; their outer halves lie outside the range
+        and are cut by it (clipped inputs, an output integrated over its range only), so they
+        act as shoulders. This is the form the uniform-grid path of the evaluator takes
+        (:func:`fuzzyservo.fuzzy.engine.pack`).
+
+        Parameters
+        ----------
+        name : str
+            Variable name.
+        range : tuple of float
+            (lo, hi) [unit of the variable].
+        labels : sequence of str
+            At least two labels, from lo to hi.
+        default : float
+            Output only: the value when no rule fires (NaN: none) [unit of the variable].
+        """
+        return cls(name, range, uniform_triangles(range, labels), default)
 
     def term_index(self, name: str) -> int:
         """Index of the term called ``name``; ParameterError naming the known terms if none."""
@@ -523,6 +467,76 @@ class FuzzySystem:
         else:
             raise ParameterError(f"rule {k}: not an expression: {e!r}")
 
+    @classmethod
+    def from_table(cls, table: Sequence[Sequence[str | None]], *, columns: Variable,
+                   rows: Variable, output: Variable, name: str = "fuzzy",
+                   **operators: str) -> FuzzySystem:
+        """A two-input Mamdani system from a rule table ``table[row][column]`` of output
+        labels (None or "-": no rule).
+
+        The inputs are ``(columns, rows)``; the rules are ``columns is A and rows is B then
+        output is C``, row by row. The paper prints rows Δe and columns e, both ordered NB .. PB.
+
+        Parameters
+        ----------
+        table : sequence of sequences of str or None
+            ``len(rows.terms)`` rows of ``len(columns.terms)`` labels each.
+        columns, rows : Variable
+            First input (the table's columns) and second input (its rows).
+        output : Variable
+            The output, whose term names the cells hold.
+        name : str
+            The system's name.
+        **operators
+            ``and_op``, ``or_op``, ``implication``, ``aggregation``, ``defuzzifier`` (default
+            min, max, min, max, centroid).
+        """
+        nr, nc = len(rows.terms), len(columns.terms)
+        if len(table) != nr or any(len(row) != nc for row in table):
+            shape_ = f"{len(table)} rows of lengths {[len(r) for r in table]}"
+            raise ParameterError(
+                f"rule table must have {nr} rows ({rows.name}) of {nc} cells "
+                f"({columns.name}), got {shape_}")
+        rules = []
+        for i2, row in enumerate(table):
+            for i1, cell in enumerate(row):
+                if cell is None or cell == "-":
+                    continue
+                rules.append(Rule(And((Is(0, i1), Is(1, i2))),
+                                  (Consequent(0, output.term_index(cell)),)))
+        return cls(name=name, kind="mamdani", inputs=(columns, rows), outputs=(output,),
+                   rules=tuple(rules), **operators)  # type: ignore[arg-type]
+
+    def rule_table(self) -> list[list[int]]:
+        """A two-input system's rules as ``table[i2][i1]`` = term of output 0 (-1: no rule):
+        rows the second input's terms, columns the first's.
+
+        Raises
+        ------
+        ParameterError
+            Not two inputs, or a rule that is not ``x1 is A and x2 is B then y is C`` (weight
+            1, one consequent on output 0), or two rules on one cell.
+        """
+        if len(self.inputs) != 2:
+            raise ParameterError(f"a rule table needs 2 inputs, system {self.name!r} has "
+                                 f"{len(self.inputs)}")
+        n1, n2 = (len(v.terms) for v in self.inputs)
+        table = [[-1] * n1 for _ in range_(n2)]
+        for k, r in enumerate(self.rules, start=1):
+            a = r.antecedent
+            ops = a.operands if isinstance(a, And) else ()
+            if (len(ops) != 2 or not all(isinstance(o, Is) and not o.negated for o in ops)
+                    or (ops[0].variable, ops[1].variable) != (0, 1)  # type: ignore[union-attr]
+                    or r.weight != 1.0 or len(r.consequents) != 1
+                    or r.consequents[0].variable != 0):
+                raise ParameterError(f"rule {k} ({self.rule_text(r)}) is not a cell of a rule "
+                                     f"table")
+            i1, i2 = ops[0].term, ops[1].term  # type: ignore[union-attr]
+            if table[i2][i1] >= 0:
+                raise ParameterError(f"rule {k} ({self.rule_text(r)}): two rules on one cell")
+            table[i2][i1] = r.consequents[0].term
+        return table
+
     def input_index(self, name: str) -> int:
         """Index of the input called ``name``."""
         for i, v in enumerate(self.inputs):
@@ -562,50 +576,23 @@ class FuzzySystem:
         return f"if {expr(rule.antecedent)} then {cons}{w}"
 
 
-def from_mamdani(system: object, name: str = "fuzzy") -> FuzzySystem:
-    """The :class:`FuzzySystem` equal to a two-input :class:`~fuzzyservo.fuzzy.MamdaniSystem`
-    (e.g. ``fuzzyservo.paper.du_system()``); a sampled centroid is refused (files name exact
-    methods only)."""
-    from .mamdani import MamdaniSystem
-    from .membership import Bell, Gaussian, LeftShoulder, RightShoulder, Trapezoid, Triangle
+def uniform_triangles(range: tuple[float, float], labels: Sequence[str]) -> tuple[Term, ...]:
+    """The terms of :meth:`Variable.uniform`: n uniform triangles on ``range``.
 
-    if not isinstance(system, MamdaniSystem):
-        raise ParameterError(f"expected a MamdaniSystem, got {type(system).__name__}")
-    spec = system.spec
-    defuzz = {"exact_centroid": "centroid", "bisector": "bisector", "mean_of_maxima": "mom"}
-    if spec.defuzz not in defuzz:
-        raise ParameterError(f"defuzzifier {spec.defuzz!r} has no exact file equivalent")
-
-    def term(label: str, mf: object) -> Term:
-        if isinstance(mf, Triangle):
-            return Term(label, "triangle", (mf.a, mf.b, mf.c))
-        if isinstance(mf, Trapezoid):
-            return Term(label, "trapezoid", (mf.a, mf.b, mf.c, mf.d))
-        if isinstance(mf, LeftShoulder):
-            return Term(label, "trapezoid", (-math.inf, mf.a, mf.a, mf.b))
-        if isinstance(mf, RightShoulder):
-            return Term(label, "trapezoid", (mf.a, mf.b, mf.b, math.inf))
-        if isinstance(mf, Gaussian):
-            return Term(label, "gaussian", (mf.mean, mf.sigma))
-        if isinstance(mf, Bell):
-            return Term(label, "bell", (mf.c, mf.a, mf.b))
-        raise ParameterError(f"membership {type(mf).__name__} has no file equivalent")
-
-    def var(v: object, default: float = math.nan) -> Variable:
-        return Variable(v.name, v.universe,  # type: ignore[attr-defined]
-                        tuple(term(lbl, mf) for lbl, mf in v.terms),  # type: ignore[attr-defined]
-                        default=default)
-
-    rules = []
-    for r in system.rules.rules:
-        clauses: list[Expr] = [Is(i, t) for i, t in enumerate(r.antecedent) if t >= 0]
-        if not clauses:
-            raise ParameterError("a rule that mentions no input has no file equivalent")
-        ante: Expr = clauses[0] if len(clauses) == 1 else And(tuple(clauses))
-        rules.append(Rule(ante, (Consequent(0, r.consequent),)))
-    default = math.nan if spec.default is None else spec.default
-    return FuzzySystem(
-        name=name, kind="mamdani", inputs=tuple(var(v) for v in system.inputs),
-        outputs=(var(system.output, default),), rules=tuple(rules), and_op=spec.and_op,
-        or_op="max", implication=spec.implication, aggregation=spec.aggregation,
-        defuzzifier=defuzz[spec.defuzz])  # type: ignore[arg-type]
+    One list of peaks is shared by neighbouring triangles as their feet, so that a foot and
+    the neighbour's peak are the same float; weighted means keep a symmetric range's peaks
+    symmetric (-1/3 and 1/3, and 0 exactly).
+    """
+    lo, hi = float(range[0]), float(range[1])
+    n = len(labels)
+    if n < 2:
+        raise ParameterError(f"a uniform partition needs >= 2 labels, got {n}")
+    if not (math.isfinite(lo) and math.isfinite(hi)) or lo >= hi:
+        raise ParameterError(f"a uniform partition needs a finite range lo < hi, got "
+                             f"({lo!r}, {hi!r})")
+    d = (hi - lo) / (n - 1)
+    peaks = [(lo * (n - 1 - k) + hi * k) / (n - 1) for k in range_(n)]
+    peaks[-1] = hi
+    ext = [lo - d, *peaks, hi + d]
+    return tuple(Term(label, "triangle", (ext[k], ext[k + 1], ext[k + 2]))
+                 for k, label in enumerate(labels))

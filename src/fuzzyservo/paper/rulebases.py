@@ -12,8 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import ParameterError
-from ..fuzzy import LinguisticVariable, MamdaniSpec, MamdaniSystem, RuleBase
-from ..fuzzy.system import FuzzySystem, from_mamdani
+from ..fuzzy import FuzzySystem, Variable
 
 __all__ = [
     "ALPHA_LABELS",
@@ -56,38 +55,41 @@ ALPHA_TABLE: tuple[tuple[str, ...], ...] = (
 )
 
 
-def _inputs() -> tuple[LinguisticVariable, LinguisticVariable]:
-    e = LinguisticVariable.uniform("e", (-1.0, 1.0), LABELS)
-    de = LinguisticVariable.uniform("de", (-1.0, 1.0), LABELS)
+def _inputs() -> tuple[Variable, Variable]:
+    e = Variable.uniform("e", (-1.0, 1.0), LABELS)
+    de = Variable.uniform("de", (-1.0, 1.0), LABELS)
     return e, de
 
 
-def du_system() -> MamdaniSystem:
+def du_system() -> FuzzySystem:
     """The fuzzy PI's Δu system of Fig. 3a (normalised e, Δe -> Δu_n, all on [-1, 1]).
+
+    It has no value for when no rule fires (default NaN): its complete table over inputs whose
+    triangles cover [-1, 1] always fires. The shipped files hold :func:`paper_fuzzy_system`.
 
     Examples
     --------
-    >>> round(du_system().evaluate(1.0, 1.0), 12)   # centroid of a half triangle: 8/9
+    >>> from fuzzyservo.fuzzy import evaluate
+    >>> round(float(evaluate(du_system(), [1.0, 1.0])[0]), 12)  # centroid of a half triangle
     0.888888888889
     """
     e, de = _inputs()
-    du = LinguisticVariable.uniform("du", (-1.0, 1.0), LABELS)
-    rules = RuleBase.from_table(DU_TABLE, columns=e, rows=de, output=du)
-    return MamdaniSystem(rules=rules, spec=MamdaniSpec())
+    du = Variable.uniform("du", (-1.0, 1.0), LABELS)
+    return FuzzySystem.from_table(DU_TABLE, columns=e, rows=de, output=du, name="paper_du")
 
 
-def alpha_system() -> MamdaniSystem:
+def alpha_system() -> FuzzySystem:
     """The self-tuning gain-updating factor α of Fig. 3b (e, Δe on [-1, 1] -> α on [0, 1]).
 
     Examples
     --------
-    >>> round(alpha_system().evaluate(0.0, 0.0), 12)   # 1/18
+    >>> round(float(evaluate(alpha_system(), [0.0, 0.0])[0]), 12)   # 1/18
     0.055555555556
     """
     e, de = _inputs()
-    alpha = LinguisticVariable.uniform("alpha", (0.0, 1.0), ALPHA_LABELS)
-    rules = RuleBase.from_table(ALPHA_TABLE, columns=e, rows=de, output=alpha)
-    return MamdaniSystem(rules=rules, spec=MamdaniSpec())
+    alpha = Variable.uniform("alpha", (0.0, 1.0), ALPHA_LABELS)
+    return FuzzySystem.from_table(ALPHA_TABLE, columns=e, rows=de, output=alpha,
+                                  name="paper_alpha")
 
 
 #: File names of the paper's systems shipped in ``fuzzyservo/data/systems`` (one per format).
@@ -96,8 +98,7 @@ SYSTEM_FILES: tuple[str, ...] = tuple(f"paper-{role}.{ext}" for role in ("du", "
 
 
 def paper_fuzzy_system(role: str) -> FuzzySystem:
-    """The paper's ``"du"`` or ``"alpha"`` system as a general
-    :class:`~fuzzyservo.fuzzy.system.FuzzySystem` (what the shipped files hold).
+    """The paper's ``"du"`` or ``"alpha"`` system as the shipped files hold it.
 
     The output's default (the value when no rule fires) is the middle of its range, MATLAB's
     convention, so that one system is written unchanged to .fis, FCL and FLL; it is never used:
@@ -108,7 +109,7 @@ def paper_fuzzy_system(role: str) -> FuzzySystem:
     makers = {"du": du_system, "alpha": alpha_system}
     if role not in makers:
         raise ParameterError(f"role must be 'du' or 'alpha', got {role!r}")
-    s = from_mamdani(makers[role](), name=f"paper_{role}")
+    s = makers[role]()
     out = s.outputs[0]
     mid = 0.5 * (out.range[0] + out.range[1])
     return dataclasses.replace(s, outputs=(dataclasses.replace(out, default=mid),))

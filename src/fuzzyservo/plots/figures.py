@@ -22,7 +22,8 @@ import numpy as np
 from .._io import atomic_write
 from .._typing import FloatArray
 from ..errors import ParameterError
-from ..fuzzy import LinguisticVariable, MamdaniSystem
+from ..fuzzy import FuzzySystem, Variable, membership
+from .systems import DPI, new_figure, response_data
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -59,8 +60,6 @@ FIG3_STEMS: tuple[str, ...] = (
     "fig3b_memberships", "fig3b_rules_alpha", "fig3b_surface_alpha",
 )
 
-#: Resolution of the PNG files [dots per inch].
-DPI = 120
 
 
 def math_name(name: str) -> str:
@@ -108,13 +107,13 @@ class SurfaceData:
     input_names: tuple[str, str] = ("e", "de")  #: names of the two inputs
 
 
-def membership_data(system: MamdaniSystem, n: int = 401, *,
+def membership_data(system: FuzzySystem, n: int = 401, *,
                     variables: tuple[str, ...] | None = None) -> MembershipData:
     """Sample the membership functions of the inputs and the output of ``system``.
 
     Parameters
     ----------
-    system : MamdaniSystem
+    system : FuzzySystem
         The fuzzy system.
     n : int
         Points per universe, >= 2.
@@ -123,7 +122,7 @@ def membership_data(system: MamdaniSystem, n: int = 401, *,
     """
     if n < 2:
         raise ParameterError(f"need at least 2 points per universe, got {n}")
-    every: tuple[LinguisticVariable, ...] = (*system.inputs, system.output)
+    every: tuple[Variable, ...] = (*system.inputs, system.outputs[0])
     if variables is None:
         chosen = every
     else:
@@ -133,42 +132,40 @@ def membership_data(system: MamdaniSystem, n: int = 401, *,
             raise ParameterError(f"variables {list(variables)!r}: the system has "
                                  f"{', '.join(by_name)}")
         chosen = tuple(by_name[v] for v in variables)
-    xs = tuple(np.linspace(*v.universe, n) for v in chosen)
-    mus = tuple(np.stack([mf(x) for _, mf in v.terms]) for v, x in zip(chosen, xs,
-                                                                       strict=True))
+    xs = tuple(np.linspace(*v.range, n) for v in chosen)
+    mus = tuple(np.stack([membership(t.shape, t.params, x, t.height) for t in v.terms])
+                for v, x in zip(chosen, xs, strict=True))
     peaks = tuple(x[np.argmax(mu, axis=1)] for x, mu in zip(xs, mus, strict=True))
     return MembershipData(names=tuple(v.name for v in chosen), x=xs,
-                          labels=tuple(v.labels for v in chosen), mu=mus, peaks=peaks)
+                          labels=tuple(tuple(t.name for t in v.terms) for v in chosen),
+                          mu=mus, peaks=peaks)
 
 
-def rule_table_data(system: MamdaniSystem, title: str = "") -> RuleTableData:
+def rule_table_data(system: FuzzySystem, title: str = "") -> RuleTableData:
     """The rule base of ``system`` as a table: rows the second input, columns the first.
 
     Read from the system's rules (not from a printed table), so the figure shows the rules
     the controller uses.
     """
     col_var, row_var = system.inputs
-    out = system.output
-    index = np.full((len(row_var.terms), len(col_var.terms)), np.nan)
-    for rule in system.rules.rules:
-        i_col, i_row = rule.antecedent
-        if i_col < 0 or i_row < 0:
-            raise ParameterError(f"rule {rule} does not name both inputs: not a table")
-        index[i_row, i_col] = rule.consequent
-    labels = out.labels
+    out = system.outputs[0]
+    table = np.array(system.rule_table(), dtype=np.float64)
+    index = np.where(table < 0, np.nan, table)
+    labels = tuple(t.name for t in out.terms)
     cells = tuple(tuple("" if np.isnan(k) else labels[int(k)] for k in row) for row in index)
     return RuleTableData(title=title, output_name=out.name, row_name=row_var.name,
-                         column_name=col_var.name, row_labels=row_var.labels,
-                         column_labels=col_var.labels, output_labels=labels, cells=cells,
-                         index=index)
+                         column_name=col_var.name,
+                         row_labels=tuple(t.name for t in row_var.terms),
+                         column_labels=tuple(t.name for t in col_var.terms),
+                         output_labels=labels, cells=cells, index=index)
 
 
-def surface_data(system: MamdaniSystem, n: int = 81, title: str = "") -> SurfaceData:
+def surface_data(system: FuzzySystem, n: int = 81, title: str = "") -> SurfaceData:
     """Evaluate ``system`` on an n x n grid over its input universes.
 
     Parameters
     ----------
-    system : MamdaniSystem
+    system : FuzzySystem
         The fuzzy system.
     n : int
         Grid points per input, >= 2.
@@ -177,17 +174,13 @@ def surface_data(system: MamdaniSystem, n: int = 81, title: str = "") -> Surface
     """
     if n < 2:
         raise ParameterError(f"need a grid of at least 2 x 2, got n={n}")
-    e = np.linspace(*system.inputs[0].universe, n)
-    de = np.linspace(*system.inputs[1].universe, n)
-    value = system.evaluate(e[None, :], de[:, None])
-    return SurfaceData(title=title, e=e, de=de, value=value, output_name=system.output.name,
+    r = response_data(system, n)
+    if len(r.axes) != 2:
+        raise ParameterError(f"a control surface needs two inputs, system {system.name!r} has "
+                             f"{len(r.axes)}")
+    return SurfaceData(title=title, e=r.axes[0], de=r.axes[1], value=r.values[0],
+                       output_name=system.outputs[0].name,
                        input_names=(system.inputs[0].name, system.inputs[1].name))
-
-
-def _figure(width: float, height: float) -> Figure:
-    from matplotlib.figure import Figure  # only when drawing (see the module's doc)
-
-    return Figure(figsize=(width, height), layout="constrained", dpi=DPI)
 
 
 def _five_ticks(ax: Axes, lo: float, hi: float, axis: str = "x") -> None:
@@ -200,7 +193,7 @@ def render_memberships(data: MembershipData, title: str = "") -> Figure:
     """One panel per variable with its membership functions, each term labelled above its
     peak inside the axes (the end terms aligned inwards, so no label is cut)."""
     k = len(data.names)
-    fig = _figure(max(4.2 * k, 6.0), 3.3)
+    fig = new_figure(max(4.2 * k, 6.0), 3.3)
     axes = fig.subplots(1, k, squeeze=False)[0]
     for ax, name, x, labels, mu, peaks in zip(axes, data.names, data.x, data.labels, data.mu,
                                               data.peaks, strict=True):
@@ -230,7 +223,7 @@ def render_rule_table(data: RuleTableData) -> Figure:
     from matplotlib.transforms import Bbox
 
     n_rows, n_cols = data.index.shape
-    fig = _figure(0.6 + 0.75 * (n_cols + 1), 1.1 + 0.36 * (n_rows + 1))
+    fig = new_figure(0.6 + 0.75 * (n_cols + 1), 1.1 + 0.36 * (n_rows + 1))
     ax = fig.add_subplot(1, 1, 1)
     ax.set_axis_off()
     signed = data.output_name != "alpha"  # Δu is signed (diverging tints), α is not
@@ -264,7 +257,7 @@ def render_rule_table(data: RuleTableData) -> Figure:
 
 def render_surface(data: SurfaceData) -> Figure:
     """3-D surface with a contour map beside it."""
-    fig = _figure(10.5, 4.4)
+    fig = new_figure(10.5, 4.4)
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ee, dd = np.meshgrid(data.e, data.de)
     ax3.plot_surface(ee, dd, data.value, cmap="viridis", linewidth=0, antialiased=True)
@@ -293,14 +286,14 @@ def fig3_files(out_dir: Path, formats: tuple[str, ...] = ("png",)) -> list[Path]
     return [Path(out_dir) / f"{stem}.{fmt}" for stem in FIG3_STEMS for fmt in formats]
 
 
-def fig3(du: MamdaniSystem, alpha: MamdaniSystem, out_dir: Path, n: int = 81,
+def fig3(du: FuzzySystem, alpha: FuzzySystem, out_dir: Path, n: int = 81,
          formats: tuple[str, ...] = ("png",)) -> list[Path]:
     """Write the paper's Fig. 3: for each system the membership functions, the rule table
     and the control surface.
 
     Parameters
     ----------
-    du, alpha : MamdaniSystem
+    du, alpha : FuzzySystem
         The Δu system (Fig. 3a) and the α system (Fig. 3b).
     out_dir : Path
         Output directory (created if missing).
@@ -315,18 +308,18 @@ def fig3(du: MamdaniSystem, alpha: MamdaniSystem, out_dir: Path, n: int = 81,
         The files written, as :func:`fig3_files` lists them.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
-    out_name = math_name(alpha.output.name)
+    out_name = math_name(alpha.outputs[0].name)
     figures = {
         "fig3a_memberships": render_memberships(
             membership_data(du),
             rf"Fig. 3a: membership functions of {math_name('e')}, {math_name('de')} "
             rf"and {math_name('du')}"),
         "fig3a_rules_du": render_rule_table(rule_table_data(
-            du, rf"Fig. 3a: rules for {math_name(du.output.name)}")),
+            du, rf"Fig. 3a: rules for {math_name(du.outputs[0].name)}")),
         "fig3a_surface_du": render_surface(surface_data(
             du, n, r"Fig. 3a: control surface $\Delta u_n(e_n, \Delta e_n)$")),
         "fig3b_memberships": render_memberships(
-            membership_data(alpha, variables=(alpha.output.name,)),
+            membership_data(alpha, variables=(alpha.outputs[0].name,)),
             f"Fig. 3b: membership functions of {out_name}"),
         "fig3b_rules_alpha": render_rule_table(rule_table_data(
             alpha, f"Fig. 3b: rules for {out_name}")),

@@ -38,7 +38,8 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import ParameterError
-from ..fuzzy.general import compile_system, evaluate, membership
+from ..fuzzy import evaluate, membership, pack
+from ..fuzzy.shapes import SUGENO, knots
 from ..fuzzy.system import FuzzySystem, Term, Variable
 
 if TYPE_CHECKING:
@@ -51,6 +52,7 @@ __all__ = [
     "SystemFigureData",
     "TermCurve",
     "VariablePanel",
+    "new_figure",
     "render_response",
     "render_system",
     "render_variables",
@@ -138,24 +140,6 @@ def _polyline(vertices: tuple[tuple[float, float], ...], lo: float, hi: float
     return xs, ys
 
 
-def _knots(term: Term) -> list[float]:
-    """Abscissae where a smooth term changes character: its location parameters (and the
-    joints of s, z and pi)."""
-    p = term.params
-    s = term.shape
-    if s in ("gaussian", "bell", "sigmoid"):
-        return [p[0]]
-    if s == "gaussian2":
-        return [p[0], p[2]]
-    if s in ("dsigmoid", "psigmoid"):
-        return [p[0], p[3]]
-    if s in ("s", "z"):
-        return [p[0], 0.5 * (p[0] + p[1]), p[1]]
-    if s == "pi":
-        return [p[0], 0.5 * (p[0] + p[1]), p[1], p[2], 0.5 * (p[2] + p[3]), p[3]]
-    return list(p)
-
-
 def term_curve(term: Term, lo: float, hi: float, n: int = MF_SAMPLES) -> TermCurve:
     """The membership curve of ``term`` over [lo, hi] (exact corners; see the module's doc).
 
@@ -173,7 +157,7 @@ def term_curve(term: Term, lo: float, hi: float, n: int = MF_SAMPLES) -> TermCur
     ParameterError
         A Sugeno term (it has no membership function), or n < 2.
     """
-    if term.shape in ("constant", "linear"):
+    if term.shape in SUGENO:
         raise ParameterError(f"term {term.name!r}: a {term.shape} Sugeno term has no "
                              f"membership function to draw")
     if n < 2:
@@ -185,7 +169,7 @@ def term_curve(term: Term, lo: float, hi: float, n: int = MF_SAMPLES) -> TermCur
     if vertices is not None:
         x, mu = _polyline(vertices, lo, hi)
         return TermCurve(name=term.name, x=x, mu=mu)
-    extra = [k for k in _knots(term) if lo <= k <= hi]
+    extra = [k for k in knots(term.shape, term.params) if lo <= k <= hi]
     x = np.unique(np.concatenate([np.linspace(lo, hi, n), np.array(extra, dtype=np.float64)]))
     return TermCurve(name=term.name, x=x, mu=membership(term.shape, term.params, x, term.height))
 
@@ -235,7 +219,7 @@ def variable_panels(system: FuzzySystem, n: int = MF_SAMPLES) -> tuple[VariableP
 
 def response_data(system: FuzzySystem, n: int) -> ResponseData:
     """Every output of a one- or two-input system over its inputs' ranges, exactly
-    (:func:`fuzzyservo.fuzzy.general.evaluate`).
+    (:func:`fuzzyservo.fuzzy.evaluate`).
 
     Parameters
     ----------
@@ -252,16 +236,17 @@ def response_data(system: FuzzySystem, n: int) -> ResponseData:
     """
     if n < 2:
         raise ParameterError(f"need at least 2 points per input, got {n}")
-    comp = compile_system(system)
+    comp = pack(system)
     names = tuple(v.name for v in system.inputs)
     outs = tuple(v.name for v in system.outputs)
     if len(system.inputs) == 1:
         (var,) = system.inputs
         lo, hi = var.range
-        knots: list[float] = []
+        knots_: list[float] = []
         for t in var.terms:
-            knots += [x for x, _ in t.vertices] if t.vertices is not None else _knots(t)
-        inside = [k for k in knots if lo <= k <= hi]
+            v = t.vertices
+            knots_ += [x for x, _ in v] if v is not None else knots(t.shape, t.params)
+        inside = [k for k in knots_ if lo <= k <= hi]
         x = np.unique(np.concatenate([np.linspace(lo, hi, n),
                                       np.array(inside, dtype=np.float64)]))
         values = evaluate(comp, x[:, None], parallel=True).T.copy()
@@ -379,7 +364,8 @@ def _label_levels(labels: list[tuple[float, str]], lo: float, hi: float) -> list
     return levels
 
 
-def _figure(width: float, height: float) -> Figure:
+def new_figure(width: float, height: float) -> Figure:
+    """An empty figure of the fuzzy-system plots (constrained layout, :data:`DPI`)."""
     from matplotlib.figure import Figure  # only when drawing (see the module's doc)
 
     return Figure(figsize=(width, height), layout="constrained", dpi=DPI)
@@ -402,7 +388,7 @@ def render_variables(panels: tuple[VariablePanel, ...], title: str = "") -> Figu
         raise ParameterError("no variables to draw")
     cols = min(_PANELS_PER_ROW, len(panels))
     rows = math.ceil(len(panels) / cols)
-    fig = _figure(max(4.2 * cols, 6.0), 3.2 * rows + (0.4 if title else 0.0))
+    fig = new_figure(max(4.2 * cols, 6.0), 3.2 * rows + (0.4 if title else 0.0))
     _draw_panels(fig, panels)
     if title:
         fig.suptitle(title)
@@ -469,7 +455,7 @@ def render_system(data: SystemFigureData) -> Figure:
     elif r is not None:
         heights.append(3.1 * math.ceil(len(r.output_names) / _PANELS_PER_ROW))
     width = max(4.2 * cols, 10.5 if r is not None and len(r.axes) == 2 else 6.0)
-    fig = _figure(width, sum(heights) + 0.5)
+    fig = new_figure(width, sum(heights) + 0.5)
     subs = fig.subfigures(len(heights), 1, height_ratios=heights, squeeze=False)[:, 0]
     _draw_panels(subs[0], data.panels)
     if r is not None and len(r.axes) == 2:
@@ -486,13 +472,13 @@ def render_response(r: ResponseData, title: str = "") -> Figure:
     view and contour map), for one input the output curves."""
     if len(r.axes) == 2:
         n_out = len(r.output_names)
-        fig = _figure(10.5, 4.2 * n_out + (0.4 if title else 0.0))
+        fig = new_figure(10.5, 4.2 * n_out + (0.4 if title else 0.0))
         subs = fig.subfigures(n_out, 1, squeeze=False)[:, 0]
         for k in range(n_out):
             _draw_surface(subs[k], r, k)
     else:
         cols = min(_PANELS_PER_ROW, len(r.output_names))
-        fig = _figure(max(4.2 * cols, 6.0),
+        fig = new_figure(max(4.2 * cols, 6.0),
                       3.1 * math.ceil(len(r.output_names) / cols) + (0.4 if title else 0.0))
         _draw_curves(fig, r)
     if title:

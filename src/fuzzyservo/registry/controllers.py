@@ -36,6 +36,7 @@ from .._typing import FloatArray
 from ..control import FuzzyPIController, PIDController, SelfTuningFuzzyPIController
 from ..control.fuzzy_pi import KernelSystem
 from ..errors import ParameterError
+from ..fuzzy.engine import pack
 from ..paper import alpha_system, du_system
 from ._table import lookup
 
@@ -298,7 +299,7 @@ class ControllerKind:
 
 
 def default_systems(names: tuple[str, ...] = ("du", "alpha")) -> dict[str, KernelSystem]:
-    """The paper's fuzzy systems by role: ``du`` (Fig. 3a) and ``alpha`` (Fig. 3b).
+    """The paper's fuzzy systems by role, packed: ``du`` (Fig. 3a) and ``alpha`` (Fig. 3b).
 
     Built once per process and shared: they are frozen, and building them (checking every
     output set) took 14 ms of each controller built, most of a browser-page run."""
@@ -307,7 +308,7 @@ def default_systems(names: tuple[str, ...] = ("du", "alpha")) -> dict[str, Kerne
 
 @functools.cache
 def _paper_system(role: str) -> KernelSystem:
-    return {"du": du_system, "alpha": alpha_system}[role]()
+    return pack({"du": du_system, "alpha": alpha_system}[role]())
 
 
 _PID_OPTIONS = ("anti_windup", "tracking_time", "u_min", "u_max")

@@ -36,7 +36,7 @@ from .report import Figure
 if TYPE_CHECKING:
     from matplotlib.figure import Figure as Drawing
 
-    from ..fuzzy import LinguisticVariable, MamdaniSystem
+    from ..fuzzy import FuzzySystem, Variable
 
 __all__ = ["FIGURE_STEMS", "NEAR_FRACTION", "OVERSHOOT_LIMIT_PCT", "PlannedFigure",
            "fig3_captions", "figure_files", "figure_plan", "study_figures"]
@@ -75,38 +75,40 @@ class PlannedFigure:
 _CAPTION_NAMES = {"e": "eₙ", "de": "Δeₙ", "du": "Δuₙ", "alpha": "α"}
 
 #: The defuzzifiers in words.
-_DEFUZZ_WORDS = {"exact_centroid": "centroid", "sampled_centroid": "centroid (sampled)",
-                 "bisector": "bisector of area", "mean_of_maxima": "mean of maxima"}
+_DEFUZZ_WORDS = {"centroid": "centroid", "bisector": "bisector of area",
+                 "mom": "mean of maxima", "som": "smallest of maxima",
+                 "lom": "largest of maxima", "wtaver": "weighted average",
+                 "wtsum": "weighted sum"}
 
 
-def fig3_captions(du: MamdaniSystem, alpha: MamdaniSystem) -> dict[str, str]:
+def fig3_captions(du: FuzzySystem, alpha: FuzzySystem) -> dict[str, str]:
     """The report's caption of each file stem of Fig. 3 (``plots.figures.FIG3_STEMS``): what
     it shows, read from the two systems (terms, universes, rules, operators)."""
-    def name(v: LinguisticVariable) -> str:
+    def name(v: Variable) -> str:
         return _CAPTION_NAMES.get(v.name, v.name)
 
-    def terms(v: LinguisticVariable) -> str:
-        lo, hi = v.universe
-        return f"{', '.join(v.labels)} on [{lo:g}, {hi:g}]"
+    def terms(v: Variable) -> str:
+        lo, hi = v.range
+        return f"{', '.join(t.name for t in v.terms)} on [{lo:g}, {hi:g}]"
 
-    def rules(system: MamdaniSystem, fig: str) -> str:
+    def rules(system: FuzzySystem, fig: str) -> str:
         col, row = system.inputs
-        spec = system.spec
-        return (f"Fig. {fig}: the {len(system.rules.rules)} rules for {name(system.output)}, "
+        out = system.outputs[0]
+        return (f"Fig. {fig}: the {len(system.rules)} rules for {name(out)}, "
                 f"laid out as the paper's table: row {name(row)}, column {name(col)}, cell "
-                f"the term of {name(system.output)} (AND {spec.and_op}, implication "
-                f"{spec.implication}, aggregation {spec.aggregation.replace('_', ' ')}).")
+                f"the term of {name(out)} (AND {system.and_op}, implication "
+                f"{system.implication}, aggregation {system.aggregation.replace('_', ' ')}).")
 
-    def surface(system: MamdaniSystem, fig: str, what: str) -> str:
+    def surface(system: FuzzySystem, fig: str, what: str) -> str:
         col, row = system.inputs
-        how = _DEFUZZ_WORDS.get(system.spec.defuzz, system.spec.defuzz.replace("_", " "))
-        return (f"Fig. {fig}: {what} {name(system.output)}({name(col)}, {name(row)}) of "
+        how = _DEFUZZ_WORDS[system.defuzzifier]
+        return (f"Fig. {fig}: {what} {name(system.outputs[0])}({name(col)}, {name(row)}) of "
                 f"these rules, defuzzified by the {how}: left as a surface, right as "
                 f"contours.")
 
-    du_vars = [*du.inputs, du.output]
+    du_vars = [*du.inputs, du.outputs[0]]
     if len({terms(v) for v in du_vars}) == 1:
-        du_terms = f"each with the terms {terms(du.output)}"
+        du_terms = f"each with the terms {terms(du.outputs[0])}"
     else:
         du_terms = "; ".join(f"{name(v)}: {terms(v)}" for v in du_vars)
     e, de = du.inputs
@@ -116,13 +118,13 @@ def fig3_captions(du: MamdaniSystem, alpha: MamdaniSystem) -> dict[str, str]:
         "fig3a_memberships": (
             f"Fig. 3a: membership functions of the fuzzy PI's inputs, the normalised error "
             f"{name(e)} and its change {name(de)}, and of its output, the normalised change "
-            f"of the command {name(du.output)}; {du_terms}."),
+            f"of the command {name(du.outputs[0])}; {du_terms}."),
         "fig3a_rules_du": rules(du, "3a"),
         "fig3a_surface_du": surface(du, "3a", "the control surface"),
         "fig3b_memberships": (
-            f"Fig. 3b: membership functions of the gain updating factor {name(alpha.output)} "
+            f"Fig. 3b: membership functions of the gain updating factor {name(alpha.outputs[0])} "
             f"of the self-tuning fuzzy PI (the paper's α with subscript F): the terms "
-            f"{terms(alpha.output)}. {same}"),
+            f"{terms(alpha.outputs[0])}. {same}"),
         "fig3b_rules_alpha": rules(alpha, "3b"),
         "fig3b_surface_alpha": surface(alpha, "3b", "the gain updating factor"),
     }
