@@ -254,8 +254,8 @@ def membership(shape: str, params: tuple[float, ...], x: ArrayLike, height: floa
     """Membership of a term (shape and parameters as :class:`~fuzzyservo.fuzzy.system.Term`)
     at ``x``: the compiled function the evaluator uses, over a numpy array."""
     f = np.array(_term_floats(shape, tuple(params), height), dtype=np.float64)
-    xa = np.ascontiguousarray(np.asarray(x, dtype=np.float64))
-    flat = xa.ravel()
+    xa = np.asarray(x, dtype=np.float64)
+    flat = np.ascontiguousarray(xa.ravel())
     out = np.empty(flat.shape[0])
     _mf_array(SHAPE_CODE[shape], f, 0, len(params), flat, out)
     return out.reshape(xa.shape)
