@@ -47,7 +47,7 @@ def _report_key(manifest: str) -> str:
     from .. import __version__
 
     h = hashlib.sha256(manifest.encode())
-    for mod in ("sweep/report.py", "plots/sweep_figures.py", "study/report.py"):
+    for mod in ("sweep/report.py", "plots/sweep_figures.py", "files/html.py"):
         h.update((resources.files("fuzzyservo") / mod).read_bytes())
     h.update(__version__.encode())
     return h.hexdigest()

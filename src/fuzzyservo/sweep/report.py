@@ -3,7 +3,7 @@
 The report reads only the columns it needs from the sweep's Parquet dataset, computes every
 number with vectorised numpy (no Python loop over rows), draws its figures from binned
 numbers (:mod:`fuzzyservo.plots.sweep_figures`) into a temporary folder, and writes one
-self-contained HTML file in the study's look (:mod:`fuzzyservo.study.report`: figures
+self-contained HTML file in the study's look (:mod:`fuzzyservo.files.html`: figures
 embedded as base64 PNG, nothing fetched). A sweep's controllers ran on the same points, so
 every table and figure puts them side by side, and the paired comparisons compare them point
 by point.
@@ -61,10 +61,10 @@ from ..analysis.outcome import (
     TAIL_FRACTION,
 )
 from ..errors import InputError
+from ..files.html import Figure, Section, Table, write_html
 from ..plant.params import GROUPS
 from ..plots import sweep_figures as sf
 from ..sim.stepinfo import SETTLE_HOLD_FRACTION
-from ..study.report import Figure, Section, Table, write_html
 from .dataset import Manifest, finished_files, read_manifest, read_table
 from .replay import simulate_command
 from .spec import SweepSpec, Variation
