@@ -328,7 +328,7 @@ def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
     incomplete by an earlier run); by default they are issued as :class:`CacheWarning`.
     ``extra(out)`` writes further outputs once the study's are written and returns
     ``(main paths by name, every file it wrote or kept)``: they join the manifest like the
-    study's own (the command line's C8 sweeps, :mod:`fuzzyservo.sweep.c8`).
+    study's own (the command line's C8 sweeps, :mod:`fuzzyservo.study.c8`).
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
