@@ -18,7 +18,6 @@ from fuzzyservo.paper import alpha_system, du_system
 from fuzzyservo.plots.figures import FIG3_STEMS
 from fuzzyservo.study.figures import fig3_captions
 from fuzzyservo.study.paper_study import TUNED_DESIGNS
-from fuzzyservo.study.report import Details, Section, Table, Verdict, render_html
 from fuzzyservo.study.runner import default_gains_dir
 from tests.helpers import printed_metrics
 
@@ -32,20 +31,6 @@ def _rows(out: Path) -> list[dict[str, str]]:
 
 def _value(row: dict[str, str], name: str) -> float:
     return float(next(v for k, v in row.items() if k.startswith(name + " ")))
-
-
-def test_render_links_verdict_cells_to_collapsible_details() -> None:
-    html = render_html("t", [Section(
-        "s", summary="One <b>. Two.", tables=[Table(["id", "p"], [
-            ["C1", Verdict("does not hold", "does not hold", "claim-p-C1")]])],
-        details=[Details("claim-p-C1", ["C1: ", Verdict("does not hold")],
-                         paragraphs=[("Rule:", "a < b")], tables=[Table(["x"], [[1.23456]])])])])
-    assert '<p class="summary">One &lt;b&gt;. Two.</p>' in html
-    assert ('<td class="does-not-hold v-does-not-hold"><a href="#claim-p-C1">does not hold</a>'
-            '</td>') in html
-    assert '<details id="claim-p-C1"><summary>C1: <span class="does-not-hold">' in html
-    assert "<p><b>Rule:</b> a &lt; b</p>" in html
-    assert '<td class="num">1.235</td>' in html  # 4 significant digits
 
 
 def test_the_report_opens_with_a_short_computed_summary_and_a_verdict_grid(

@@ -25,11 +25,11 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
 
+from fuzzyservo.analysis.outcome import OUTCOMES
 from fuzzyservo.cli import main
 from fuzzyservo.sweep import load_spec, read_table, run_sweep
 from fuzzyservo.sweep.dataset import finished_files
 from fuzzyservo.sweep.report import write_report
-from fuzzyservo.sweep.run import OUTCOMES
 from tests.helpers import printed_metrics
 
 # two grids (a grid map), noise drawn at random, three controllers: the last never settles

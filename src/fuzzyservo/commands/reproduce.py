@@ -127,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         extra = None
         if sweeps:  # claim C8 at scale: the shipped sweeps, reduced (docs/sweep.md)
-            from ..sweep.c8 import run_c8
+            from ..study.c8 import run_c8
 
             def extra(out: Path) -> tuple[dict[str, Path], list[Path]]:
                 return run_c8(out, plants, args.c8_samples, progress=False, tick=progress)

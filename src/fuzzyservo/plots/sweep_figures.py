@@ -57,8 +57,8 @@ __all__ = [
 SWEEP_COLOURS: tuple[str, ...] = ("#0072b2", "#d55e00", "#009e73", "#cc79a7", "#e69f00",
                                   "#56b4e9", "#000000", "#999933", "#332288", "#882255")
 
-#: Colour of each outcome (``fuzzyservo.sweep.run.OUTCOMES``): green to red as they worsen,
-#: grey for a point without a valid plant.
+#: Colour of each outcome (``fuzzyservo.analysis.outcome.OUTCOMES``): green to red as they
+#: worsen, grey for a point without a valid plant.
 OUTCOME_COLOURS: dict[str, str] = {
     "settles": "#1a9850",
     "overshoots": "#a6d96a",

@@ -11,8 +11,8 @@ defines each metric and says when it is NaN.
 
 :func:`tail_oscillation_core` measures how a response moves over the last part of the run (its
 peak-to-peak, swings across its mean, their period and whether they are sustained): the batch
-kernel fills ``BatchResult.tail`` with it and :func:`fuzzyservo.study.claims.tail_oscillation`
-(the limit-cycle test of the study) wraps it.
+kernel fills ``BatchResult.tail`` with it and :func:`fuzzyservo.analysis.outcome.tail_oscillation`
+(one run's, for the limit-cycle test of the outcome rule) wraps it.
 """
 
 from __future__ import annotations

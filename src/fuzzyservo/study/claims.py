@@ -18,7 +18,15 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray
-from ..sim.stepinfo import N_TAIL, tail_oscillation_core
+from ..analysis.outcome import (
+    LIMIT_CYCLE_MIN_PP,
+    LIMIT_CYCLE_MIN_SUSTAIN,
+    LIMIT_CYCLE_MIN_SWINGS,
+    MAX_OVERSHOOT_PCT,
+    TAIL_FRACTION,
+    classify,
+    tail_oscillation,
+)
 
 __all__ = [
     "CLAIM_RULES",
@@ -26,18 +34,12 @@ __all__ = [
     "CLAIM_TEXTS",
     "HOLDS",
     "KICK_TIME_CONSTANTS",
-    "LIMIT_CYCLE_MIN_PP",
-    "LIMIT_CYCLE_MIN_SUSTAIN",
-    "LIMIT_CYCLE_MIN_SWINGS",
-    "MAX_OVERSHOOT_PCT",
     "NOT_HOLDS",
     "NO_OVERSHOOT_PCT",
     "NO_SSE_FRACTION",
     "PARTLY",
-    "TAIL_FRACTION",
     "Claim",
     "Outcome",
-    "TailOscillation",
     "Trace",
     "Value",
     "alpha_settles",
@@ -45,7 +47,6 @@ __all__ = [
     "evaluate_claims",
     "response_outcome",
     "summarize",
-    "tail_oscillation",
     "transient_window",
 ]
 
@@ -58,28 +59,12 @@ PARTLY = "holds under stated conditions"
 NO_OVERSHOOT_PCT = 0.5
 #: A steady-state error counts as "none" below this fraction of the step [-].
 NO_SSE_FRACTION = 0.005
-#: The paper's design condition for its PID (overshoot <= 10 %), also the constraint every
-#: tuned design of the study meets; a run that exceeds it is not "robust" (C6, C8) [%].
-MAX_OVERSHOOT_PCT = 10.0
 #: C3's "after the initial transient" starts this many derivative-filter time constants 1/N
 #: after the step (N of the paper's PIDs, or the sample time for an unfiltered derivative):
 #: the derivative kick kd N dr (7.5 for PID (1.2, 1, 0.75), N = 100 1/s, a 0.1 m step) falls
 #: below the command limit 1 after ln(7.5)/N = 20 ms and to e^-10 (5e-5) of its start by
 #: 10/N = 0.1 s, so nothing of it is left in the window [-].
 KICK_TIME_CONSTANTS = 10.0
-#: Fraction of the run, at its end, over which a response is examined for a limit cycle, and
-#: α_F for being constant (C4) [-].
-TAIL_FRACTION = 0.25
-#: A limit cycle is an oscillation of at least this peak-to-peak size [fraction of the step]:
-#: +-0.5 % of the step, the resolution the study reads into the paper's plots (as for "no
-#: overshoot"); smaller wiggles are not something the paper could show or mean.
-LIMIT_CYCLE_MIN_PP = 0.01
-#: ... that swings across its mean (with a hysteresis of a quarter of its peak-to-peak) at
-#: least this many times in the tail: two full periods, the least that shows a repetition [-].
-LIMIT_CYCLE_MIN_SWINGS = 4
-#: ... and is sustained: its peak-to-peak over the second half of the tail is at least this
-#: fraction of that over the first half (a decaying oscillation loses more) [-].
-LIMIT_CYCLE_MIN_SUSTAIN = 0.5
 #: α_F is constant when its spread over the tail is at most this (1/100 of its range) [-].
 ALPHA_MAX_SPREAD = 0.01
 
@@ -233,43 +218,6 @@ def command_amplitude(t: FloatArray, u: FloatArray, *, after: float) -> dict[str
 
 
 @dataclass(frozen=True, slots=True)
-class TailOscillation:
-    """How y moves over the last part of a run (see :func:`tail_oscillation`)."""
-
-    peak_to_peak: float  #: max - min of y over the tail [m]
-    swings: int  #: alternations across mean +- peak_to_peak/4 (half periods) [-]
-    period: float  #: mean period of the swings, NaN with fewer than 3 [s]
-    sustain: float  #: peak-to-peak of the tail's second half over its first half's [-]
-    window: float  #: length of the tail [s]
-
-
-def tail_oscillation(t: FloatArray, y: FloatArray, *,
-                     tail: float = TAIL_FRACTION) -> TailOscillation:
-    """Measure the oscillation of ``y`` over the last ``tail`` fraction of the run.
-
-    A swing is counted each time y passes from below its tail mean minus a quarter of its
-    tail peak-to-peak to above the mean plus that quarter, or back (a hysteresis relative to
-    the oscillation itself, so that tiny wiggles at the mean are not counted). The measures
-    are :func:`fuzzyservo.sim.stepinfo.tail_oscillation_core`'s, the function the batch
-    simulator fills ``BatchResult.tail`` with (``t`` non-decreasing [s], ``y`` [m]).
-    """
-    tc = np.ascontiguousarray(t, dtype=np.float64)
-    yc = np.ascontiguousarray(y, dtype=np.float64)
-    if tc.ndim != 1 or tc.shape != yc.shape:
-        raise ValueError(f"t and y need the same 1-D shape, got {tc.shape} and {yc.shape}")
-    out = np.empty(N_TAIL + 1)
-    tail_oscillation_core(tc, yc, float(tail), out)
-    return TailOscillation(float(out[0]), int(out[1]), float(out[2]), float(out[3]),
-                           float(out[N_TAIL]))
-
-
-def _is_limit_cycle(osc: TailOscillation, step: float) -> bool:
-    return (osc.peak_to_peak >= LIMIT_CYCLE_MIN_PP * abs(step)
-            and osc.swings >= LIMIT_CYCLE_MIN_SWINGS
-            and osc.sustain >= LIMIT_CYCLE_MIN_SUSTAIN)
-
-
-@dataclass(frozen=True, slots=True)
 class Outcome:
     """How one run ends, as C6 and C8 read it."""
 
@@ -280,35 +228,43 @@ class Outcome:
 
 
 def response_outcome(m: Metrics, trace: Trace | None, *, duration: float) -> Outcome:
-    """Classify a run from its step metrics and, when given, its trace (for a limit cycle).
+    """Classify a run from its step metrics and, when given, its trace (for a limit cycle):
+    :func:`fuzzyservo.analysis.outcome.classify` on this one run, with its text.
 
     ``m`` needs ``overshoot`` [%] and ``settling_time`` [s] (NaN: not settled) and may hold
     ``diverged`` (nonzero: the state became non-finite); ``duration`` is the run's length [s].
+    The step a limit cycle is measured against is ``r[-1] - y[0]`` of the trace.
     """
     os_, ts_ = float(m["overshoot"]), float(m["settling_time"])
     data: dict[str, Value] = {"overshoot": os_, "settling_time": ts_}
     diverged = bool(m.get("diverged", 0.0))
     osc = None
+    step = math.nan
     if trace is not None and not diverged:
         t, y, r = trace
         step = float(r[-1] - y[0])
         osc = tail_oscillation(t, y)
         data.update({"tail_peak_to_peak": osc.peak_to_peak, "tail_swings": osc.swings,
                      "tail_period": osc.period, "tail_sustain": osc.sustain})
-    if diverged:
-        kind, text = "diverged", "diverged"
-    elif osc is not None and _is_limit_cycle(osc, step):
-        kind = "limit cycle"
+    tail = (math.nan, math.nan, math.nan) if osc is None else (
+        osc.peak_to_peak, float(osc.swings), osc.sustain)
+    one = {name: np.array([v]) for name, v in (
+        ("overshoot", os_), ("settling_time", ts_), ("tail_peak_to_peak", tail[0]),
+        ("tail_swings", tail[1]), ("tail_sustain", tail[2]))}
+    kind = str(classify(one, np.array([step]), np.array([diverged]))[0])
+    if kind == "diverged":
+        text = "diverged"
+    elif kind == "limit cycle":
+        assert osc is not None  # no tail measured, no limit cycle
         text = (f"limit cycle: +-{_f(0.5e3 * osc.peak_to_peak, ' mm')} "
                 f"({_f(50.0 * osc.peak_to_peak / abs(step), ' % of the step')}), period "
                 f"{_f(osc.period, ' s')}, over the last {osc.window:.3g} s")
-    elif math.isnan(ts_):
-        kind, text = "not settled", f"not settled by t = {duration:g} s (overshoot {_f(os_, ' %')})"
-    elif os_ > MAX_OVERSHOOT_PCT:
-        kind = "overshoots"
+    elif kind == "not settled":
+        text = f"not settled by t = {duration:g} s (overshoot {_f(os_, ' %')})"
+    elif kind == "overshoots":
         text = f"settles in {_f(ts_, ' s')} but overshoots {_f(os_, ' %')}"
     else:
-        kind, text = "settles", f"settles in {_f(ts_, ' s')}, overshoot {_f(os_, ' %')}"
+        text = f"settles in {_f(ts_, ' s')}, overshoot {_f(os_, ' %')}"
     data["outcome"] = kind
     robust = kind == "settles"
     data["robust"] = robust

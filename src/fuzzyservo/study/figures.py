@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..files.html import Figure
 from ..plots.study_figures import (
     Curve,
     alpha_figure,
@@ -31,7 +32,6 @@ from ..plots.study_figures import (
     step_figure,
 )
 from .paper_study import PlantStudy, StudyConfig
-from .report import Figure
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure as Drawing

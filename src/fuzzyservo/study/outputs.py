@@ -9,13 +9,13 @@ from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 
 from .._io import atomic_write, strict_json, write_text_atomic
+from ..files.html import Details, Figure, Section, Table, Verdict, write_html
 from ..paper import alpha_system, du_system
 from ..paper.departures import DEPARTURES
 from ..plant import linearize, to_dict
 from .claims import CLAIM_SHORT, HOLDS, NOT_HOLDS, PARTLY, Claim, summarize
 from .figures import fig3_captions, study_figures
 from .paper_study import TUNED_AS, PlantStudy, StudyConfig, design_name
-from .report import Details, Figure, Section, Table, Verdict, write_html
 
 __all__ = ["METRIC_COLUMNS", "trace_files", "write_outputs"]
 

@@ -49,6 +49,7 @@ from ..analysis.autotune import (
 from ..analysis.tuning import TuningConstraints
 from ..errors import InputError
 from ..files import read_gains_toml, write_gains_toml
+from ..files.html import Section, write_html
 from ..paper import alpha_system, du_system, named_set
 from ..plant import ServoParams, to_dict
 from ..plots.figures import fig3, fig3_files
@@ -58,7 +59,6 @@ from .claims import NO_OVERSHOOT_PCT
 from .figures import figure_files
 from .outputs import trace_files, write_outputs
 from .paper_study import TUNED_DESIGNS, PlantStudy, StudyConfig, run_plant_study
-from .report import Section, write_html
 from .reuse import Digests, reusable
 
 __all__ = ["GAIN_FILES", "MANIFEST", "PLANTS", "CacheWarning", "default_gains_dir",
@@ -328,7 +328,7 @@ def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
     incomplete by an earlier run); by default they are issued as :class:`CacheWarning`.
     ``extra(out)`` writes further outputs once the study's are written and returns
     ``(main paths by name, every file it wrote or kept)``: they join the manifest like the
-    study's own (the command line's C8 sweeps, :mod:`fuzzyservo.sweep.c8`).
+    study's own (the command line's C8 sweeps, :mod:`fuzzyservo.study.c8`).
     """
     out = Path(out)
     if out.exists() and not out.is_dir():

@@ -3,18 +3,16 @@ variations, run chunk by chunk (locally or on Dask) into a resumable Parquet dat
 report that reads it (docs/sweep.md)."""
 
 from .dataset import Manifest, read_manifest, read_table, table_digest
-from .run import OUTCOMES, classify, columns, compute_chunk, run_sweep
+from .run import columns, compute_chunk, run_sweep
 from .sampling import Points, points
 from .spec import ControllerEntry, SweepSpec, Variation, load_spec, parse_spec
 
 __all__ = [
-    "OUTCOMES",
     "ControllerEntry",
     "Manifest",
     "Points",
     "SweepSpec",
     "Variation",
-    "classify",
     "columns",
     "compute_chunk",
     "load_spec",

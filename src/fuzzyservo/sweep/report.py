@@ -3,13 +3,13 @@
 The report reads only the columns it needs from the sweep's Parquet dataset, computes every
 number with vectorised numpy (no Python loop over rows), draws its figures from binned
 numbers (:mod:`fuzzyservo.plots.sweep_figures`) into a temporary folder, and writes one
-self-contained HTML file in the study's look (:mod:`fuzzyservo.study.report`: figures
+self-contained HTML file in the study's look (:mod:`fuzzyservo.files.html`: figures
 embedded as base64 PNG, nothing fetched). A sweep's controllers ran on the same points, so
 every table and figure puts them side by side, and the paired comparisons compare them point
 by point.
 
 Sections: a banner when the sweep is partial (chunks written of the spec's); a summary;
-outcomes and failure rates with the classification rules (:mod:`fuzzyservo.sweep.run`);
+outcomes and failure rates with the classification rules (:mod:`fuzzyservo.analysis.outcome`);
 the distributions of the metrics; paired comparisons; the effect of each varied quantity; maps
 of the failure rate and the ITAE over two varied quantities; the worst runs of each controller,
 each with the ``fuzzyservo simulate`` command that replays it; invalid points; the sweep's
@@ -52,21 +52,21 @@ from typing import Any
 import numpy as np
 
 from .._typing import BoolArray, FloatArray, IntArray
-from ..errors import InputError
-from ..plant.params import GROUPS
-from ..plots import sweep_figures as sf
-from ..sim.stepinfo import SETTLE_HOLD_FRACTION
-from ..study.claims import (
+from ..analysis.outcome import (
     LIMIT_CYCLE_MIN_PP,
     LIMIT_CYCLE_MIN_SUSTAIN,
     LIMIT_CYCLE_MIN_SWINGS,
     MAX_OVERSHOOT_PCT,
+    OUTCOMES,
     TAIL_FRACTION,
 )
-from ..study.report import Figure, Section, Table, write_html
+from ..errors import InputError
+from ..files.html import Figure, Section, Table, write_html
+from ..plant.params import GROUPS
+from ..plots import sweep_figures as sf
+from ..sim.stepinfo import SETTLE_HOLD_FRACTION
 from .dataset import Manifest, finished_files, read_manifest, read_table
 from .replay import simulate_command
-from .run import OUTCOMES
 from .spec import SweepSpec, Variation
 
 __all__ = ["FAILURES", "METRICS", "MIN_BIN_RUNS", "WORST_ORDER", "SweepData", "load",
@@ -388,7 +388,8 @@ def _num(x: float) -> str:
 
 
 def _rules(spec: SweepSpec) -> list[str]:
-    """The classification rules of fuzzyservo.sweep.run, with this sweep's numbers."""
+    """The classification rules (:mod:`fuzzyservo.analysis.outcome`), with this sweep's
+    numbers."""
     band = 2.0  # the settling band, % of the step (sweeps use simulate's metric options)
     hold = SETTLE_HOLD_FRACTION * 100.0
     tail = TAIL_FRACTION * 100.0

@@ -6,24 +6,15 @@ cluster, into the folder's Parquet dataset.
 Dask worker. :func:`run_sweep` runs the chunks not yet written, writes each as it arrives
 (:mod:`fuzzyservo.sweep.dataset`), and shows a progress bar of runs with rate and ETA.
 
-Classification of each run (``outcome``), the rules of the study's claims C6 and C8
-(:func:`fuzzyservo.study.claims.response_outcome`), applied to the kernels' metrics:
+Each run's ``outcome`` is :func:`fuzzyservo.analysis.outcome.classify` of the kernels' metrics
+(the rule of the study's claims C6 and C8, with its thresholds), plus ``invalid`` for a point
+without a valid plant (a drawn parameter out of its range, no equilibrium, a delay longer than
+the run, a reference out of the stroke; ``error`` says why).
 
-``diverged``     the state became non-finite
-``limit cycle``  the tail (last ``TAIL_FRACTION`` of the run) swings at least
-                 ``LIMIT_CYCLE_MIN_SWINGS`` times, peak to peak at least ``LIMIT_CYCLE_MIN_PP``
-                 of the step, and does not die out (second half's peak-to-peak at least
-                 ``LIMIT_CYCLE_MIN_SUSTAIN`` of the first half's)
-``not settled``  never inside the 2 % band for good
-``overshoots``   settles, but overshoots more than ``MAX_OVERSHOOT_PCT``
-``settles``      settles within the limit: ``robust`` is true
-``invalid``      the point has no valid plant (a drawn parameter out of its range, no
-                 equilibrium, a delay longer than the run, a reference out of the stroke);
-                 ``error`` says why
-
-One difference from ``response_outcome``: the step a limit cycle is measured against is the
-reference's move (r at the end minus the start position), not r at the end minus the first
-measured sample; they differ by the first sample's noise and transducer rounding.
+One difference from :func:`fuzzyservo.study.claims.response_outcome`: the step a limit cycle
+is measured against is the reference's move (r at the end minus the start position), not r at
+the end minus the first measured sample; they differ by the first sample's noise and
+transducer rounding.
 """
 
 from __future__ import annotations
@@ -41,6 +32,7 @@ import numpy as np
 
 from .._io import sha256_file
 from .._typing import FloatArray
+from ..analysis.outcome import TAIL_FRACTION, classify
 from ..errors import FuzzyServoError, InputError, OutputError, ParameterError
 from ..plant import with_overrides
 from ..registry import build_plant
@@ -48,31 +40,18 @@ from ..sim import simulate_batch
 from ..sim.closed_loop import check_delay, plant_limits, time_grid
 from ..sim.references import Step, check_reference, check_reference_samples, parse_reference
 from ..sim.stepinfo import METRIC_NAMES
-from ..study.claims import (
-    LIMIT_CYCLE_MIN_PP,
-    LIMIT_CYCLE_MIN_SUSTAIN,
-    LIMIT_CYCLE_MIN_SWINGS,
-    MAX_OVERSHOOT_PCT,
-    TAIL_FRACTION,
-)
 from .dataset import Manifest, adopt, chunk_path, finished_files, read_manifest, write_chunk
 from .sampling import Points, points
 from .spec import SAMPLING_SCHEME, UNRECORDED_SCHEME, SweepSpec, canonical_digest
 
 __all__ = [
-    "OUTCOMES",
     "TAIL_COLUMNS",
     "PointRuns",
     "build_controllers",
-    "classify",
     "columns",
     "compute_chunk",
     "run_sweep",
 ]
-
-#: Outcomes of a run, from best to worst.
-OUTCOMES: tuple[str, ...] = ("settles", "overshoots", "not settled", "limit cycle", "diverged",
-                             "invalid")
 
 #: Tail-oscillation columns (``fuzzyservo.sim.stepinfo.TAIL_NAMES``).
 TAIL_COLUMNS: tuple[str, ...] = ("tail_peak_to_peak", "tail_swings", "tail_period",
@@ -84,25 +63,6 @@ def columns(spec: SweepSpec) -> list[str]:
     return ["point", "cell", "sample", "controller", *[v.name for v in spec.vary],
             "noise_seed", *METRIC_NAMES, *TAIL_COLUMNS, "diverged", "outcome", "robust",
             "error"]
-
-
-def classify(metrics: dict[str, FloatArray], step: FloatArray, diverged: np.ndarray,
-             invalid: np.ndarray) -> np.ndarray:
-    """The outcome of each run (see the module docstring), as an array of str."""
-    n = diverged.shape[0]
-    out = np.full(n, "settles", dtype=object)
-    os_ = metrics["overshoot"]
-    settle = metrics["settling_time"]
-    with np.errstate(invalid="ignore"):
-        out[os_ > MAX_OVERSHOOT_PCT] = "overshoots"
-        out[np.isnan(settle)] = "not settled"
-        cycle = ((metrics["tail_peak_to_peak"] >= LIMIT_CYCLE_MIN_PP * np.abs(step))
-                 & (metrics["tail_swings"] >= LIMIT_CYCLE_MIN_SWINGS)
-                 & (metrics["tail_sustain"] >= LIMIT_CYCLE_MIN_SUSTAIN))
-    out[cycle] = "limit cycle"
-    out[diverged] = "diverged"
-    out[invalid] = "invalid"
-    return out
 
 
 def build_controllers(spec: SweepSpec) -> list[Any]:

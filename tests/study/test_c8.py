@@ -1,4 +1,4 @@
-"""The reduced C8 sweeps of ``fuzzyservo reproduce`` (sweep/c8.py): what a run without the
+"""The reduced C8 sweeps of ``fuzzyservo reproduce`` (study/c8.py): what a run without the
 sweeps or an interruption leaves in their folder is started afresh; anything else is kept."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from fuzzyservo.errors import OutputError
-from fuzzyservo.sweep.c8 import run_c8
+from fuzzyservo.study.c8 import run_c8
 from fuzzyservo.sweep.dataset import read_manifest, read_table, table_digest
 
 

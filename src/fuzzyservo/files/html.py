@@ -1,7 +1,10 @@
 """A self-contained, offline HTML report: figures embedded as base64 PNG, tables as HTML.
 
-The report opens without a network connection or any file beside it. It is written from
-records the study computed (no simulation happens here).
+The one writer of the study's report (``reproduce``'s ``report.html``) and a sweep's
+(``fuzzyservo sweep-report``): the report opens without a network connection or any file
+beside it. It is written from records already computed (no simulation happens here); a
+:class:`Verdict` cell is coloured by :data:`VERDICT_CLASSES`, the verdicts of the study's
+claims.
 """
 
 from __future__ import annotations

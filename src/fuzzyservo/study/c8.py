@@ -1,6 +1,9 @@
 """Claim C8 at scale in ``fuzzyservo reproduce``: the shipped C8 sweeps
 (``data/sweeps/c8-{plant}.toml``), reduced to their first draws, and their reports.
 
+The study's use of the sweeps (:mod:`fuzzyservo.sweep`, which knows nothing of the study): the
+paper's claim, its spec files and its sample sizes are the study's.
+
 A draw depends on its grid cell and its number there only (:mod:`fuzzyservo.sweep.sampling`),
 so the reduced sweep runs the very plants the full one starts each noise level with. A later
 run with the same inputs finds the sweep complete and only writes the report again; a folder
@@ -19,9 +22,9 @@ from pathlib import Path
 
 from .._io import sha256_file, write_text_atomic
 from ..errors import OutputError
-from .dataset import read_manifest
-from .run import run_sweep
-from .spec import SweepSpec, load_spec
+from ..sweep.dataset import read_manifest
+from ..sweep.run import run_sweep
+from ..sweep.spec import SweepSpec, load_spec
 
 __all__ = ["C8_SAMPLES", "c8_spec", "run_c8"]
 
@@ -47,7 +50,8 @@ def _report_key(manifest: str) -> str:
     from .. import __version__
 
     h = hashlib.sha256(manifest.encode())
-    for mod in ("sweep/report.py", "plots/sweep_figures.py", "study/report.py"):
+    for mod in ("sweep/report.py", "plots/sweep_figures.py", "files/html.py",
+                "analysis/outcome.py"):
         h.update((resources.files("fuzzyservo") / mod).read_bytes())
     h.update(__version__.encode())
     return h.hexdigest()
@@ -59,7 +63,7 @@ def _sweep_leftovers(folder: Path) -> bool:
     sweeps removes the files the last run recorded (manifest, stamp, chunks) but not the
     lock, and an interruption of that removal can leave chunks without their manifest; both
     are reproduce's own and start the sweep afresh. Anything else is someone's and is kept."""
-    from .dataset import finished_files
+    from ..sweep.dataset import finished_files
 
     ours = {folder / ".lock", folder / "report.key", *finished_files(folder).values()}
     for p in folder.rglob("*"):
@@ -78,8 +82,8 @@ def run_c8(out: Path, plants: Sequence[str], samples: int | None = None, *,
     """Run the reduced C8 sweeps into ``out/c8-sweep-{plant}`` and write
     ``out/c8-sweep-{plant}.html``; return the report paths by name and every file of the
     sweeps (for the study's manifest)."""
-    from .dataset import finished_files
-    from .report import write_report
+    from ..sweep.dataset import finished_files
+    from ..sweep.report import write_report
 
     paths: dict[str, Path] = {}
     files: list[Path] = []
