@@ -34,7 +34,7 @@ from bokeh.models.annotations import Legend, LegendItem
 from bokeh.plotting import figure
 
 from ..analysis.step_metrics import METRIC_UNITS as UNITS
-from ..errors import FuzzyServoError, InputError, error_chain
+from ..errors import FuzzyServoError, InputError, UsageError, error_chain
 from ..paper.published import SET_NAMES, named_set
 from ..registry import (
     controller_colour,
@@ -106,6 +106,15 @@ def _prompt(widget: Any) -> Any:
     ones, so the page's inputs are taken at once (docs/app.md, "Responsive")."""
     widget._debounce = 0
     return widget
+
+
+def _whole(value: int | None, flag: str) -> int:
+    """A whole-number input of the tuner, refused as ``fuzzyservo tune`` refuses it when
+    empty."""
+    if value is None:
+        raise UsageError(f"fuzzyservo tune: error: argument {flag}: invalid int value: "
+                         f"'None'")
+    return int(value)
 
 
 def _round3(v: float) -> float:
@@ -444,7 +453,7 @@ class ServoPage:
                 group, fld = ph.key.split(".")
                 if si != float(getattr(getattr(params, group), fld)):
                     overrides.append((ph.key, si))
-        options = []
+        options: list[tuple[str, Any]] = []
         for key, w in self.w_options.items():
             if not w.visible:
                 continue
@@ -850,9 +859,10 @@ class ServoPage:
             overrides=tuple(s.overrides), start=s.start, step=ref.amplitude,
             duration=s.duration, ts=s.ts, delay=spec.checked_delay(params),
             objective=str(self.w_objective.value), constraints=constraints, seed=0,
-            popsize=int(self.w_popsize.value), maxiter=int(self.w_maxiter.value),
+            popsize=_whole(self.w_popsize.value, "--popsize"),
+            maxiter=_whole(self.w_maxiter.value, "--maxiter"),
             patience=stop.patience, rtol=stop.rtol, spread=stop.spread,
-            restarts=int(self.w_restarts.value), polish=True,
+            restarts=_whole(self.w_restarts.value, "--restarts"), polish=True,
             systems=systems_record(systems))
         return setup, params, systems
 
