@@ -21,21 +21,23 @@ ALLOWED: dict[str, set[str]] = {
     "sim": {"control", "plant", "fuzzy"},
     "paper": {"fuzzy", "formats", "plant", "control"},
     "registry": {"fuzzy", "formats", "plant", "control", "sim", "paper"},
+    # one description of a run (RunSpec), for every front end above
+    "run": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry"},
     "analysis": {"registry", "sim", "control", "plant", "fuzzy", "formats"},
     "files": {"analysis", "registry", "sim", "control", "plant", "fuzzy", "formats"},
     "plots": {"analysis", "sim", "control", "plant", "fuzzy", "formats", "paper"},
     "export": {"registry", "control", "fuzzy", "formats", "plant", "sim", "paper"},
     # the study runs claim C8 as a sweep (study/c8.py)
-    "study": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis",
-              "files", "plots", "sweep"},
-    "sweep": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis",
-              "files", "plots"},
+    "study": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "run",
+              "analysis", "files", "plots", "sweep"},
+    "sweep": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "run",
+              "analysis", "files", "plots"},
     # the browser page is a front end beside the command line, built on the library: it
     # imports neither the commands nor the CLI (the `app` command starts it)
-    "app": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "analysis",
-            "files", "plots", "export"},
+    "app": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "run",
+            "analysis", "files", "plots", "export"},
     # the commands: the command line's handlers, over everything below them
-    "commands": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry",
+    "commands": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "run",
                  "analysis", "files", "plots", "export", "study", "sweep", "app"},
     "cli": {"commands"},
     "_entry": {"cli"},  # the entry point: catches Ctrl-C while the CLI is imported

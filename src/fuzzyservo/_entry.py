@@ -18,8 +18,7 @@ import os
 import signal
 import sys
 
-#: What Ctrl-C prints, here and in ``fuzzyservo.cli.main``.
-INTERRUPTED = "fuzzyservo: interrupted; files being written were left as they were"
+from .errors import INTERRUPTED  # already imported with the package: costs nothing
 
 
 def run() -> None:

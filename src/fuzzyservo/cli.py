@@ -27,15 +27,14 @@ import signal
 import sys
 import threading
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 from . import __version__
-from ._entry import INTERRUPTED
 from ._io import Terminated, terminate_gracefully
 from .commands import COMMANDS as _COMMAND_MODULES
 from .commands import HELP as _HELP
-from .errors import FuzzyServoError
+from .errors import INTERRUPTED, FuzzyServoError, UsageError, error_chain
 
 #: Subcommands, in the order ``--help`` lists them (``fuzzyservo.commands.COMMANDS`` names
 #: each one's module).
@@ -85,18 +84,9 @@ def _resend(signum: int) -> None:
         os.kill(os.getpid(), signum)
 
 
-def _chain(exc: BaseException) -> Iterator[BaseException]:
-    seen: set[int] = set()
-    cur: BaseException | None = exc
-    while cur is not None and id(cur) not in seen:
-        seen.add(id(cur))
-        yield cur
-        cur = cur.__cause__ or cur.__context__
-
-
 def _ours(exc: BaseException) -> FuzzyServoError | None:
     """The first error of ours in ``exc``'s chain (scipy wraps errors raised in callbacks)."""
-    return next((e for e in _chain(exc) if isinstance(e, FuzzyServoError)), None)
+    return next((e for e in error_chain(exc) if isinstance(e, FuzzyServoError)), None)
 
 
 def _error(message: str) -> int:
@@ -109,11 +99,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
-
-
-class UsageError(FuzzyServoError, ValueError):
-    """A usage error of :func:`build_parser` ``(raising=True)``: the line the CLI would print
-    (``fuzzyservo simulate: error: argument --duration: ...``)."""
 
 
 class _RaisingParser(argparse.ArgumentParser):
@@ -233,7 +218,7 @@ def _run(argv: Sequence[str] | None) -> int:
         # Ctrl-C inside a class body being created (a module imported lazily, e.g.
         # matplotlib's) reaches us as a RuntimeError from __set_name__ with the
         # KeyboardInterrupt as its cause: it is still an interruption
-        stop = next((e for e in _chain(exc) if isinstance(e, KeyboardInterrupt)), None)
+        stop = next((e for e in error_chain(exc) if isinstance(e, KeyboardInterrupt)), None)
         if stop is not None:
             raise stop from None
         ours = _ours(exc)

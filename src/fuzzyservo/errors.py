@@ -8,7 +8,10 @@ them on one line and exits with status 2.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 __all__ = [
+    "INTERRUPTED",
     "EmptyFuzzySetError",
     "FormatError",
     "FuzzyServoError",
@@ -16,7 +19,13 @@ __all__ = [
     "OutputError",
     "ParameterError",
     "SimulationDivergedError",
+    "UsageError",
+    "error_chain",
 ]
+
+#: What Ctrl-C prints, in the entry point (``fuzzyservo._entry``) and in
+#: ``fuzzyservo.cli.main``. Here, not in either, so that neither imports the other for it.
+INTERRUPTED = "fuzzyservo: interrupted; files being written were left as they were"
 
 
 class FuzzyServoError(Exception):
@@ -48,3 +57,19 @@ class EmptyFuzzySetError(FuzzyServoError, ValueError):
 
 class SimulationDivergedError(FuzzyServoError, RuntimeError):
     """A simulation produced a non-finite state; the message names the time and the state."""
+
+
+class UsageError(FuzzyServoError, ValueError):
+    """A usage error of a command line a front end builds: the line the CLI would print
+    (``fuzzyservo simulate: error: argument --duration: ...``)."""
+
+
+def error_chain(exc: BaseException) -> Iterator[BaseException]:
+    """``exc``, then its causes and contexts, each once (scipy wraps errors raised in
+    callbacks; a front end looks for its own in the chain)."""
+    seen: set[int] = set()
+    cur: BaseException | None = exc
+    while cur is not None and id(cur) not in seen:
+        seen.add(id(cur))
+        yield cur
+        cur = cur.__cause__ or cur.__context__

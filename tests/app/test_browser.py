@@ -18,7 +18,7 @@ from urllib.parse import urlparse
 import pytest
 from selenium.webdriver.common.keys import Keys
 
-from fuzzyservo.app.page import PIN_COLOURS
+from fuzzyservo.app.page import pin_colour
 from fuzzyservo.files import read_gains_file
 from tests.app.browser import Page, app_server, require_browser
 
@@ -140,7 +140,7 @@ def test_two_pinned_runs_are_drawn_in_the_study_colours(page: Page) -> None:
         }
         return out.sort();""")
     assert [(d[0], d[1], d[2]) for d in drawn] == [
-        ("fs-pin-0", PIN_COLOURS["stfpi"], 5001), ("fs-pin-1", PIN_COLOURS["pid"], 5001)]
+        ("fs-pin-0", pin_colour("stfpi"), 5001), ("fs-pin-1", pin_colour("pid"), 5001)]
     assert drawn[0][3] != drawn[1][3]  # two different runs
     metrics = [page.metrics(c) for c in (0, 1, 2)]
     assert metrics[1] != metrics[2] and metrics[0] == metrics[2]

@@ -363,7 +363,7 @@ def test_listed_commands_replay_their_rows(main_sweep: Path, main_report: str,
                 want = float(f"{row[name]:.6g}")  # printed to 6 significant digits
                 assert (math.isnan(got[name]) and math.isnan(want)) or got[name] == want, name
             checked += 1
-            noisy += row["noise_std"] > 0.0 and "--noise-std" in argv
+            noisy += row["noise_std"] > 0.0 and f"--noise-std={row['noise_std']!r}" in argv
     assert checked >= 2 and noisy >= 1
 
 

@@ -18,7 +18,25 @@ from .._typing import ArrayLike, FloatArray
 from ..errors import InputError
 from ..sim.stepinfo import StepMetrics, metric_options, metrics_of
 
-__all__ = ["Run", "StepMetrics", "step_metrics"]
+__all__ = ["METRIC_UNITS", "Run", "StepMetrics", "step_metrics"]
+
+#: Units of each metric of a run (position in m, command as a fraction of rated input).
+METRIC_UNITS: dict[str, str] = {
+    "rise_time": "s",
+    "settling_time": "s",
+    "settling_time_5": "s",
+    "overshoot": "%",
+    "peak": "m",
+    "peak_time": "s",
+    "steady_state_error": "m",
+    "iae": "m*s",
+    "ise": "m^2*s",
+    "itae": "m*s^2",
+    "itse": "m^2*s^2",
+    "u_max": "1",
+    "u_sq_integral": "s",
+    "u_total_variation": "1",
+}
 
 
 def _signal(name: str, value: ArrayLike, n: int | None) -> FloatArray:

@@ -224,6 +224,27 @@ class TuningConstraints:
             if v is not None and not (math.isfinite(v) and v >= 0.0):
                 raise ParameterError(f"TuningConstraints.{name} must be >= 0, got {v}")
 
+    @classmethod
+    def from_limits(cls, *, max_overshoot: float | None, max_sse_percent: float | None,
+                    max_u: float | None) -> TuningConstraints:
+        """The constraints as ``fuzzyservo tune`` and the browser page take them: overshoot
+        [%], |steady-state error| in percent of the step [%], max |u| [-]; each checked
+        with the message naming its command-line flag.
+
+        Raises
+        ------
+        ParameterError
+            A limit that is not a finite number >= 0.
+        """
+        for name, value in (("--max-overshoot", max_overshoot), ("--max-sse", max_sse_percent),
+                            ("--max-u", max_u)):
+            if value is not None and not (math.isfinite(value) and value >= 0.0):
+                raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
+        return cls(max_overshoot=max_overshoot,
+                   max_steady_state_error=(None if max_sse_percent is None
+                                           else max_sse_percent / 100.0),
+                   max_u=max_u)
+
 
 #: Default stopping rule: generations without a relative improvement above DEFAULT_RTOL.
 DEFAULT_PATIENCE = 30

@@ -33,15 +33,19 @@ from bokeh.models import ColumnDataSource, Range1d
 from bokeh.models.annotations import Legend, LegendItem
 from bokeh.plotting import figure
 
-from ..commands.metrics import UNITS
-from ..errors import FuzzyServoError
+from ..analysis.step_metrics import METRIC_UNITS as UNITS
+from ..errors import FuzzyServoError, InputError, UsageError, error_chain
 from ..paper.published import SET_NAMES, named_set
-from ..plots.study_figures import CONTROLLER_COLOURS
-from ..registry import controller_kind, controller_names, plant_names
+from ..registry import (
+    controller_colour,
+    controller_kind,
+    controller_names,
+    controller_options,
+    plant_names,
+)
 from ..sim import Step, parse_reference
 from .latest import Latest
 from .settings import (
-    OPTION_CHOICES,
     PHYSICAL,
     WARMED,
     PageRun,
@@ -52,36 +56,16 @@ from .settings import (
     shift,
 )
 
-__all__ = ["MAX_PINS", "PIN_COLOURS", "ServoPage", "gain_range", "pin_colour"]
+__all__ = ["MAX_PINS", "ServoPage", "gain_range", "pin_colour"]
 
 #: Runs that can be pinned for comparison.
 MAX_PINS = 4
 
-#: Colour of a pinned run by controller: the study's fixed colour of that controller (tuned
-#: PID brown, 2-DOF PID purple, fuzzy PI green, self-tuning fuzzy PI blue); the P and PI,
-#: which the study has only as the paper's PIDs, take those runs' red and orange.
-PIN_COLOURS: dict[str, str] = {
-    "p": CONTROLLER_COLOURS["pid_paper_1"],
-    "pi": CONTROLLER_COLOURS["pid_paper_2"],
-    "pid": CONTROLLER_COLOURS["pid_tuned"],
-    "pid2": CONTROLLER_COLOURS["pid2_tuned"],
-    "fpi": CONTROLLER_COLOURS["fpi"],
-    "stfpi": CONTROLLER_COLOURS["stfpi"],
-}
-
-#: Colours of pinned runs of kinds without a colour of their own (registered later, e.g. by
-#: a user's module): Bokeh's Category10 after the study's, by the kind's registry position.
-_MORE_COLOURS = ("#17becf", "#bcbd22", "#7f7f7f", "#e377c2", "#8c564b", "#9467bd")
-
-
 def pin_colour(controller: str) -> str:
-    """The colour of a pinned run of ``controller``: :data:`PIN_COLOURS`, or for a kind
-    registered without one a colour by its position in the registry."""
-    if controller in PIN_COLOURS:
-        return PIN_COLOURS[controller]
-    names = [n for n in controller_names() if n not in PIN_COLOURS]
-    i = names.index(controller) if controller in names else 0
-    return _MORE_COLOURS[i % len(_MORE_COLOURS)]
+    """The colour of a pinned run of ``controller``: the registry's colour of the kind
+    (:func:`~fuzzyservo.registry.controller_colour`: the study's colour of that controller,
+    or for a kind registered without one a colour by its position in the registry)."""
+    return controller_colour(controller)
 
 
 #: Line styles of the second, third and fourth pinned run of one controller.
@@ -122,6 +106,15 @@ def _prompt(widget: Any) -> Any:
     ones, so the page's inputs are taken at once (docs/app.md, "Responsive")."""
     widget._debounce = 0
     return widget
+
+
+def _whole(value: int | None, flag: str) -> int:
+    """A whole-number input of the tuner, refused as ``fuzzyservo tune`` refuses it when
+    empty."""
+    if value is None:
+        raise UsageError(f"fuzzyservo tune: error: argument {flag}: invalid int value: "
+                         f"'None'")
+    return int(value)
 
 
 def _round3(v: float) -> float:
@@ -305,16 +298,16 @@ class ServoPage:
         self.w_seed = pn.widgets.IntInput(name="noise seed", value=0, width=110,
                                           css_classes=["fs-seed"])
         self.w_options: dict[str, Any] = {}
-        for flag, choices in OPTION_CHOICES.items():
-            if choices:
-                w: Any = pn.widgets.Select(name=flag.lstrip("-").replace("-", " "),
-                                           options=["(default)", *choices], value="(default)",
-                                           width=150)
+        for o in controller_options():  # as the registry declares them
+            if o.choices:
+                w: Any = pn.widgets.Select(name=o.label, options=["(default)", *o.choices],
+                                           value="(default)", width=150)
             else:
-                w = pn.widgets.FloatInput(name=f"{flag.lstrip('-').replace('-', ' ')} [s]",
-                                          value=None, width=150, placeholder="(default 0)")
+                unit = f" [{o.unit}]" if o.unit else ""
+                w = pn.widgets.FloatInput(name=f"{o.label}{unit}", value=None, width=150,
+                                          placeholder=f"(default {o.default_text()})")
             w.param.watch(self._changed, "value")
-            self.w_options[flag] = w
+            self.w_options[o.name] = w
         for w in (self.w_duration, self.w_ts, self.w_start, self.w_seed):
             w.param.watch(self._changed, "value")
         self.w_controller.param.watch(self._controller_changed, "value")
@@ -381,9 +374,8 @@ class ServoPage:
                                             self._gain_changed)
         self.gain_column.objects = [r.view for r in self.gain_rows.values()]
         kind = controller_kind(self.settings.controller)
-        for flag, w in self.w_options.items():
-            key = flag.lstrip("-").replace("-", "_")
-            w.visible = key in kind.options
+        for key, w in self.w_options.items():
+            w.visible = key in kind.option_names
 
     def _gain_changed(self, name: str, value: float) -> None:
         self.tuned = None
@@ -461,15 +453,15 @@ class ServoPage:
                 group, fld = ph.key.split(".")
                 if si != float(getattr(getattr(params, group), fld)):
                     overrides.append((ph.key, si))
-        options = []
-        for flag, w in self.w_options.items():
+        options: list[tuple[str, Any]] = []
+        for key, w in self.w_options.items():
             if not w.visible:
                 continue
             if isinstance(w, pn.widgets.Select):
                 if w.value != "(default)":
-                    options.append((flag, str(w.value)))
+                    options.append((key, str(w.value)))
             elif w.value is not None:
-                options.append((flag, repr(float(w.value))))
+                options.append((key, float(w.value)))
         kind = controller_kind(self.w_controller.value)
         systems = tuple((role, path) for role, path in sorted(self.systems.items())
                         if role in kind.systems)
@@ -763,25 +755,31 @@ class ServoPage:
         return io.BytesIO(buf.getvalue().encode())
 
     def _export_args(self, target: str, out: str) -> list[str]:
-        s = self._shown()
-        argv = ["export", target, "--controller", s.controller, "--gains",
-                ",".join(f"{k}={v!r}" for k, v in s.gains), "--ts", repr(s.ts)]
-        for flag, value in s.options:
-            argv += [f"{flag}={value}"]
-        return [*argv, *s.system_args(), "--out", out]
+        """``fuzzyservo export TARGET`` arguments of the shown controller (the run's
+        controller part, as :class:`~fuzzyservo.run.RunSpec` writes it)."""
+        spec = self._shown().run_spec()
+        argv = ["export", target, "--controller", spec.controller, "--gains",
+                spec.gains_text(), "--ts", repr(spec.ts)]
+        return [*argv, *spec.option_args(), *spec.system_args(), "--out", out]
 
     def _export(self, target: str, out: Path, shown: str) -> None:
-        """Run ``fuzzyservo export TARGET`` into ``out``; the files record the command with
-        ``--out shown``, the name the download has (so that command, run in the folder of
-        the download, writes the same files byte for byte)."""
-        import contextlib
+        """Export the shown controller as ``fuzzyservo export TARGET`` would into ``out``;
+        the files record that command with ``--out shown``, the name the download has (so
+        that command, run in the folder of the download, writes the same files byte for
+        byte)."""
+        from ..export.targets import export_c, export_controller_fmu, generate_c
+        from ..run import systems_record
 
-        from ..cli import build_parser
-
-        args = build_parser(raising=True).parse_args(self._export_args(target, str(out)))
-        args.argv = self._export_args(target, shown)
-        with contextlib.redirect_stdout(io.StringIO()):
-            args.handler(args)
+        spec = self._shown().run_spec()
+        ctl = spec.build_controller()
+        command = "fuzzyservo " + shlex.join(self._export_args(target, shown))
+        cc = generate_c(spec.controller, ctl.gains, ts=spec.ts, systems=ctl.systems,
+                        options=ctl.options, real="double", name=None,
+                        systems_record=systems_record(ctl.systems), command=command)
+        if target == "c":
+            export_c(cc, out)
+        else:
+            export_controller_fmu(cc, out, command=command)
 
     def _c_file(self) -> io.BytesIO | None:
         try:
@@ -820,15 +818,11 @@ class ServoPage:
         """``fuzzyservo tune`` arguments that tune the controller on the page's plant."""
         s = self.settings
         if s.options:
-            from ..errors import InputError
-
             raise InputError(f"the tuner tunes with the controller's default options; set "
-                             f"{', '.join(f for f, _ in s.options)} back to (default) in "
+                             f"{', '.join(s.option_flags())} back to (default) in "
                              f"'controller options' to tune")
         ref = _step_of(s.reference)
         if ref is None or ref.time != 0.0:
-            from ..errors import InputError
-
             raise InputError(f"the tuner tunes a step response from t = 0: choose the "
                              f"reference step:A, not {s.reference!r}")
         argv = ["tune", "--controller", s.controller, "--plant", s.plant,
@@ -839,16 +833,44 @@ class ServoPage:
                 str(self.w_restarts.value), "--popsize", str(self.w_popsize.value)]
         if self.w_max_os.value is not None:
             argv += [f"--max-overshoot={float(self.w_max_os.value)!r}"]
-        return [*argv, *s.system_args(), *s.parameter_args()]
+        spec = s.run_spec()
+        return [*argv, *spec.system_args(), *spec.parameter_args()]
+
+    def tuning_setup(self) -> tuple[Any, Any, Any]:
+        """What ``fuzzyservo tune`` with :meth:`tune_argv` tunes: its setup, the servo
+        parameters and the fuzzy systems, checked with the command's messages."""
+        from ..analysis.autotune import TuningSetup
+        from ..analysis.tuning import StopRule, TuningConstraints
+        from ..run import load_systems, systems_record
+
+        self.tune_argv()  # the same refusals
+        s = self.settings
+        spec = s.run_spec()
+        ref = _step_of(s.reference)
+        assert ref is not None
+        params = spec.checked_params()
+        systems = load_systems(s.controller, dict(spec.systems), spec.no_rule_value)
+        constraints = TuningConstraints.from_limits(
+            max_overshoot=10.0 if self.w_max_os.value is None else float(self.w_max_os.value),
+            max_sse_percent=0.2, max_u=None)
+        stop = StopRule()
+        setup = TuningSetup(
+            controller=s.controller, plant=s.plant, param_set=s.param_set,
+            overrides=tuple(s.overrides), start=s.start, step=ref.amplitude,
+            duration=s.duration, ts=s.ts, delay=spec.checked_delay(params),
+            objective=str(self.w_objective.value), constraints=constraints, seed=0,
+            popsize=_whole(self.w_popsize.value, "--popsize"),
+            maxiter=_whole(self.w_maxiter.value, "--maxiter"),
+            patience=stop.patience, rtol=stop.rtol, spread=stop.spread,
+            restarts=_whole(self.w_restarts.value, "--restarts"), polish=True,
+            systems=systems_record(systems))
+        return setup, params, systems
 
     def start_tuning(self, event: Any = None) -> None:
         """Run the tuner in a thread; its progress is shown, its result loaded."""
-        from ..cli import build_parser
-
         try:
             argv = self.tune_argv()
-            out = self.workdir / "tuned.toml"
-            args = build_parser(raising=True).parse_args([*argv, "--out", str(out)])
+            job = self.tuning_setup()
         except Exception as exc:
             self._show_error(exc)
             return
@@ -859,14 +881,11 @@ class ServoPage:
         self.b_tune.disabled = True
         self.b_stop.disabled = False
         self.w_tune_progress.value = 0
-        threading.Thread(target=self._tune, args=(args,), daemon=True,
+        threading.Thread(target=self._tune, args=job, daemon=True,
                          name="fuzzyservo-tune").start()
 
-    def _tune(self, args: Any) -> None:
+    def _tune(self, setup: Any, params: Any, systems: Any) -> None:
         from ..analysis.autotune import tune_controller
-        from ..commands._plantargs import params_from_args
-        from ..commands._runargs import systems_from_args
-        from ..commands.tune import _setup
 
         started = time.monotonic()
         last = [0.0]
@@ -891,14 +910,9 @@ class ServoPage:
             self._later(self._tune_progress, int(1000 * frac), text)
 
         try:
-            params = params_from_args(args)
-            systems = systems_from_args(args, args.controller)
-            setup = _setup(args, params, systems)
             tuned = tune_controller(setup, params, progress=progress, systems=systems)
         except Exception as exc:
-            from ..cli import _chain
-
-            stopped = any(isinstance(e, Stopped) for e in _chain(exc))
+            stopped = any(isinstance(e, Stopped) for e in error_chain(exc))
             self._later(self._tune_done, None, None if stopped else exc,
                         time.monotonic() - started)
             return

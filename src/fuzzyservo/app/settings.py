@@ -1,11 +1,11 @@
-"""What the browser page shows, as a ``fuzzyservo simulate`` command line, and its run.
+"""What the browser page shows, as a run (:class:`~fuzzyservo.run.RunSpec`), and its run.
 
-The page holds one :class:`PageSettings`; :meth:`PageSettings.argv` is the command line of
-``fuzzyservo simulate`` that makes the same run, and :func:`run_page` makes the run by parsing
-that command line with the CLI's own parser and running it through the command's own code
-(:func:`fuzzyservo.commands.simulate.closed_loop`). So the command the page offers to copy
-reproduces the run bit for bit, and every bad value is reported in the one line the CLI
-prints for it (docs/app.md).
+The page holds one :class:`PageSettings`; :meth:`PageSettings.run_spec` is the run it
+describes, whose :meth:`~fuzzyservo.run.RunSpec.to_argv` is the command line of ``fuzzyservo
+simulate`` that makes the same run, and :func:`run_page` builds and runs it as that command
+does (the command resolves its command line into the same ``RunSpec``). So the command the
+page offers to copy reproduces the run bit for bit, and every bad value is reported in the
+one line the CLI prints for it (docs/app.md).
 
 Units: every field here is SI, as on the command line; the page shows some in engineering
 units (:data:`PHYSICAL`) and converts once, at its edge.
@@ -13,9 +13,7 @@ units (:data:`PHYSICAL`) and converts once, at its edge.
 
 from __future__ import annotations
 
-import functools
 import math
-import shlex
 import threading
 import time
 from dataclasses import dataclass, field, replace
@@ -26,12 +24,12 @@ from typing import Any
 import numpy as np
 
 from .._typing import FloatArray
-from ..errors import FuzzyServoError, InputError
-from ..registry import DEFAULT_SUBSTEP, controller_kind, controller_names
+from ..errors import FuzzyServoError, InputError, UsageError
+from ..registry import DEFAULT_SUBSTEP, OptionSpec, controller_kind, controller_options
+from ..run import RunSpec
 
 __all__ = [
     "MAX_PAGE_SAMPLES",
-    "OPTION_CHOICES",
     "PHYSICAL",
     "PageRun",
     "PageSettings",
@@ -88,28 +86,9 @@ PHYSICAL: tuple[Physical, ...] = (
              high=100.0),
 )
 
-#: Controller options the page offers, by CLI flag: the choices (a float option has none).
-OPTION_CHOICES: dict[str, tuple[str, ...]] = {
-    "--anti-windup": ("clamping", "back-calculation", "none"),
-    "--initial-error": ("zero", "first"),
-    "--de-per": ("sample", "second"),
-    "--filter-time": (),
-}
-
-#: Option key of the controller classes -> CLI flag.
-_OPTION_KEYS = {"anti_windup": "--anti-windup", "initial_error": "--initial-error",
-                "de_per": "--de-per", "filter_time": "--filter-time"}
-
-
 #: Samples (duration / sample time) of a run the page draws: every sample of each series goes
 #: to the browser on each redraw, 200,000 are ~8 MB and a 200 s run at 1 ms.
 MAX_PAGE_SAMPLES = 200_000
-
-
-def _num(v: float) -> str:
-    """A float as the command line gets it: Python's shortest repr, which reads back to the
-    same double (``inf`` for the PID's unfiltered derivative)."""
-    return repr(float(v))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -142,8 +121,9 @@ class PageSettings:
         Start position, fraction of the stroke [-].
     substep : float
         Nonlinear plant's RK4 step bound [s].
-    options : tuple of (str, str)
-        Controller options as (CLI flag, value); only those set.
+    options : tuple of (str, object)
+        Controller options as (keyword, value), as the registry declares them
+        (:func:`~fuzzyservo.registry.controller_options`); only those set.
     systems : tuple of (str, str)
         Fuzzy systems read from files as (role, path).
     no_rule_value : float or None
@@ -163,51 +143,30 @@ class PageSettings:
     ts: float = 1e-3
     start: float = 0.5
     substep: float = DEFAULT_SUBSTEP
-    options: tuple[tuple[str, str], ...] = ()
+    options: tuple[tuple[str, Any], ...] = ()
     systems: tuple[tuple[str, str], ...] = ()
     no_rule_value: float | None = None
 
+    def run_spec(self) -> RunSpec:
+        """The run these settings describe (the noise seed only with noise, the RK4 step
+        bound only on the nonlinear plant: what the command line then leaves out)."""
+        return RunSpec(controller=self.controller, gains=self.gains, options=self.options,
+                       systems=self.systems, no_rule_value=self.no_rule_value,
+                       plant=self.plant, param_set=self.param_set, overrides=self.overrides,
+                       reference=self.reference, duration=self.duration, ts=self.ts,
+                       delay=self.delay, noise_std=self.noise_std,
+                       seed=self.seed if self.noise_std != 0.0 else 0, start=self.start,
+                       substep=self.substep if self.plant == "nonlinear" else DEFAULT_SUBSTEP)
+
     def argv(self) -> list[str]:
-        """The arguments of ``fuzzyservo simulate`` that make this run (no output option)."""
-        gains = ",".join(f"{k}={_num(v)}" for k, v in self.gains)
-        out = ["--plant", self.plant, "--controller", self.controller]
-        if gains:
-            out += ["--gains", gains]
-        # numbers as --flag=value: a negative one (a typo the CLI must name) would otherwise
-        # read as an option of its own
-        out += ["--reference", self.reference, f"--duration={_num(self.duration)}",
-                f"--ts={_num(self.ts)}", f"--start={_num(self.start)}"]
-        if self.delay != 0.0:
-            out += [f"--delay={_num(self.delay)}"]
-        if self.noise_std != 0.0:
-            out += [f"--noise-std={_num(self.noise_std)}", f"--seed={self.seed}"]
-        if self.plant == "nonlinear" and self.substep != DEFAULT_SUBSTEP:
-            out += [f"--substep={_num(self.substep)}"]
-        for flag, text in self.options:
-            out += [f"{flag}={text}"]
-        return [*out, *self.system_args(), *self.parameter_args()]
-
-    def system_args(self) -> list[str]:
-        """``--du-system``, ``--alpha-system``, ``--no-rule-value``: the fuzzy systems from
-        files (what ``simulate``, ``tune`` and ``export`` take alike)."""
-        out: list[str] = []
-        for role, file in self.systems:
-            out += [f"--{role}-system", file]
-        if self.no_rule_value is not None:
-            out += [f"--no-rule-value={_num(self.no_rule_value)}"]
-        return out
-
-    def parameter_args(self) -> list[str]:
-        """``--set`` and ``--param``: the servo's parameters (``simulate`` and ``tune``)."""
-        out = [] if self.param_set == "paper" else ["--set", self.param_set]
-        for key, number in self.overrides:
-            out += ["--param", f"{key}={_num(number)}"]
-        return out
+        """The arguments of ``fuzzyservo simulate`` that make this run (no output option):
+        :meth:`RunSpec.to_argv <fuzzyservo.run.RunSpec.to_argv>`."""
+        return self.run_spec().to_argv()
 
     def command(self) -> str:
         """The ``fuzzyservo simulate`` command that reproduces the run and prints its step
         metrics (what the page shows beside the plots)."""
-        return "fuzzyservo simulate " + shlex.join([*self.argv(), "--metrics"])
+        return self.run_spec().command()
 
     def gain_map(self) -> dict[str, float]:
         """The gains as a mapping."""
@@ -218,10 +177,14 @@ class PageSettings:
         return replace(self, gains=tuple((k, value if k == name else v)
                                          for k, v in self.gains))
 
-    def option_map(self) -> dict[str, Any]:
-        """The controller options as keyword arguments of the controller class."""
-        back = {flag: key for key, flag in _OPTION_KEYS.items()}
-        return {back[f]: (float(v) if f == "--filter-time" else v) for f, v in self.options}
+    def option_flags(self) -> list[str]:
+        """The command-line flags of the options set."""
+        return [option(name).flag for name, _ in self.options]
+
+
+def option(name: str) -> OptionSpec:
+    """The declaration of the offered controller option ``name`` (the registry's)."""
+    return next(o for o in controller_options() if o.name == name)
 
 
 @dataclass(frozen=True, slots=True)
@@ -249,25 +212,19 @@ def run_page(settings: PageSettings) -> PageRun:
         Anything the command line would reject; :func:`error_line` gives the line the CLI
         prints for it.
     """
-    from ..commands.simulate import closed_loop
-
     started = time.perf_counter()
     samples = settings.duration / settings.ts
-    if samples > MAX_PAGE_SAMPLES:  # (NaN passes on to the CLI's own message)
+    if samples > MAX_PAGE_SAMPLES:  # (NaN passes on to the run's own message)
         raise InputError(f"the page draws at most {MAX_PAGE_SAMPLES:,} samples per run; "
                          f"duration / sample time is {samples:,.0f}: shorten the run or run "
                          f"it with the command")
-    args = _parser().parse_args(["simulate", *settings.argv(), "--metrics"])
-    if not (math.isfinite(args.substep) and args.substep > 0.0):
-        raise InputError(f"--substep must be finite and > 0 s, got {args.substep!r}")
-    closed = closed_loop(args)
-    res = closed.result
+    built = settings.run_spec().build()
+    res = built.simulate()
     metrics = res.metrics().as_dict()
     return PageRun(settings=settings, t=res.t, r=res.r, y=res.y, u=res.u,
                    alpha=np.asarray(res.alpha, dtype=np.float64),
                    metrics={k: float(v) for k, v in metrics.items()},
-                   notes=(*closed.settings.notes, *closed.notes),
-                   seconds=time.perf_counter() - started, result=res)
+                   notes=built.notes(), seconds=time.perf_counter() - started, result=res)
 
 
 #: Set once the page's loops are compiled (or loaded from the cache): :func:`warm_up`.
@@ -287,26 +244,9 @@ def warm_up() -> None:
         WARMED.set()  # a failed warm-up leaves the page's own run to report the error
 
 
-def _parser() -> Any:
-    """The CLI's parser, raising on a usage error; built once per set of registered
-    controllers (8 ms), as parsing does not change it (a controller registered later, e.g.
-    by a user's module, gets a parser that offers it)."""
-    return _parser_for(controller_names())
-
-
-@functools.cache
-def _parser_for(names: tuple[str, ...]) -> Any:
-    from ..cli import build_parser
-
-    del names  # the cache key: the parser offers the registry's names as they are now
-    return build_parser(raising=True, argv=["simulate"])
-
-
 def error_line(exc: BaseException) -> str:
     """The one line the CLI prints for ``exc`` (``fuzzyservo: error: ...``; a usage error
     names the command: ``fuzzyservo simulate: error: ...``)."""
-    from ..cli import UsageError
-
     text = " ".join(str(exc).split())
     if isinstance(exc, UsageError):
         return text

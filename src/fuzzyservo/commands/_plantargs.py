@@ -8,19 +8,16 @@ Order of application: the named set (``--set``, default ``paper``), then the TOM
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 from typing import Any
 
-from ..errors import ParameterError
-from ..paper.published import SET_NAMES, named_set
-from ..plant import ServoParams, read_overrides_toml, with_overrides
+from ..paper.published import SET_NAMES
+from ..plant import ServoParams, read_overrides_toml
+from ..run import DEFAULT_SET, parse_param, servo_params
 
 __all__ = ["DEFAULT_SET", "add_plant_arguments", "overrides_from_args", "params_from_args",
            "params_given", "parse_param", "set_name"]
 
-#: The parameter set of every command when ``--set`` is not given.
-DEFAULT_SET = "paper"
 
 
 def add_plant_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,29 +32,6 @@ def add_plant_arguments(parser: argparse.ArgumentParser) -> None:
                        metavar="GROUP.FIELD=VALUE",
                        help="override one parameter in SI units, e.g. "
                             "valve.null_leakage=0 (repeatable)")
-
-
-def parse_param(text: str) -> tuple[str, float]:
-    """Split ``group.field=value`` into the name and a finite float.
-
-    Raises
-    ------
-    ParameterError
-        If the text has no ``=`` or the value is not a finite number.
-    """
-    name, sep, value = text.partition("=")
-    name = name.strip()
-    if not sep or not name or not all(part.isidentifier() for part in name.split(".")):
-        raise ParameterError(f"--param expects GROUP.FIELD=VALUE, got {text!r}")
-    try:
-        number = float(value)
-    except ValueError:
-        raise ParameterError(
-            f"--param {name}: value must be a number in SI units, got {value.strip()!r}"
-        ) from None
-    if not math.isfinite(number):
-        raise ParameterError(f"--param {name}: value must be finite, got {value.strip()!r}")
-    return name, number
 
 
 def set_name(args: Any) -> str:
@@ -87,6 +61,4 @@ def overrides_from_args(args: Any) -> dict[str, float]:
 
 def params_from_args(args: Any) -> ServoParams:
     """Build the :class:`ServoParams` selected by the options of :func:`add_plant_arguments`."""
-    params = named_set(set_name(args))
-    overrides = overrides_from_args(args)
-    return with_overrides(params, overrides) if overrides else params
+    return servo_params(set_name(args), overrides_from_args(args))

@@ -15,12 +15,11 @@ from typing import Any
 from ..analysis.autotune import TunedGains
 from ..errors import InputError, ParameterError
 from ..files import GainsFile, read_gains_file
-from ..plant import ServoParams
-from ..registry import controller_kind, controller_names, plant_names
+from ..registry import controller_kind, controller_names, controller_options, plant_names
+from ..run import load_systems, parse_delay, parse_gains_pairs, systems_record
 from ..sim import DEFAULT_DELAY
 
 __all__ = [
-    "OPTION_FLAGS",
     "ControllerChoice",
     "add_controller_arguments",
     "add_system_arguments",
@@ -34,15 +33,6 @@ __all__ = [
     "systems_from_args",
     "systems_record",
 ]
-
-#: Controller options on the command line -> keyword of the controller classes.
-OPTION_FLAGS: dict[str, str] = {
-    "anti_windup": "--anti-windup",
-    "initial_error": "--initial-error",
-    "de_per": "--de-per",
-    "filter_time": "--filter-time",
-}
-
 
 def add_plant_choice(parser: argparse.ArgumentParser | Any, default: str | None, *,
                      shown: str | None = None) -> None:
@@ -63,26 +53,8 @@ def add_delay_argument(parser: argparse.ArgumentParser | Any) -> None:
                              f"default {DEFAULT_DELAY:g}, none, as everywhere in fuzzyservo")
 
 
-def delay_from_args(text: str | None, params: ServoParams) -> float:
-    """The delay [s] that ``--delay`` names (``None``: the default, none).
-
-    Raises
-    ------
-    ParameterError
-        Neither a finite number >= 0 nor ``hose``.
-    """
-    if text is None:
-        return DEFAULT_DELAY
-    if text.strip().lower() == "hose":
-        return float(params.delay.transport_delay)
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value >= 0.0):
-        raise ParameterError(f"--delay must be a number of seconds >= 0 or 'hose' (the "
-                             f"parameter set's delay.transport_delay), got {text!r}")
-    return value
+#: The delay [s] that ``--delay`` names (:func:`fuzzyservo.run.parse_delay`).
+delay_from_args = parse_delay
 
 
 @contextlib.contextmanager
@@ -139,15 +111,9 @@ def add_controller_arguments(parser: argparse.ArgumentParser | Any) -> None:
                         help="a gains file (what 'fuzzyservo tune' writes, e.g. "
                              "src/fuzzyservo/data/gains/linear-stfpi.toml), or gains as "
                              f"NAME=VALUE pairs in SI units ({gains}; =default)")
-    parser.add_argument("--anti-windup", default=None,
-                        choices=("clamping", "back-calculation", "none"),
-                        help="PID family: anti-windup scheme (default clamping)")
-    parser.add_argument("--initial-error", default=None, choices=("zero", "first"),
-                        help="fuzzy PIs: e(-1) = 0 or e(-1) = e(0) (default zero)")
-    parser.add_argument("--de-per", default=None, choices=("sample", "second"),
-                        help="fuzzy PIs: Δe per sample or per second (default sample)")
-    parser.add_argument("--filter-time", type=float, default=None, metavar="S",
-                        help="fuzzy PIs: measurement filter time constant [s] (default 0)")
+    for o in controller_options():  # each kind's options, as the registry declares them
+        parser.add_argument(o.flag, default=None, type=o.type, choices=o.choices or None,
+                            metavar=o.metavar, help=o.help_text())
     add_system_arguments(parser)
 
 
@@ -170,7 +136,7 @@ def add_system_arguments(parser: argparse.ArgumentParser | Any) -> None:
 def systems_from_args(args: argparse.Namespace, kind: str | None) -> dict[str, Any] | None:
     """The fuzzy systems of ``--du-system`` / ``--alpha-system`` for controller ``kind``
     (None: for every controller of the registry, as the study runs them), the paper's for a
-    role not given; None when neither option is given.
+    role not given; None when neither option is given (:func:`fuzzyservo.run.load_systems`).
 
     Raises
     ------
@@ -178,70 +144,9 @@ def systems_from_args(args: argparse.Namespace, kind: str | None) -> dict[str, A
         A system option for a controller without that system, an unreadable or malformed
         file, a system that is not two-input or has no value when no rule fires.
     """
-    from ..formats import read_system
-    from ..fuzzy.loop import loop_system
-    from ..registry import default_systems
-
-    given = {role: getattr(args, f"{role}_system", None) for role in ("du", "alpha")}
-    if all(v is None for v in given.values()):
-        if getattr(args, "no_rule_value", None) is not None:
-            raise ParameterError("--no-rule-value applies to a system from a file: add "
-                                 "--du-system or --alpha-system")
-        return None
-    needs = controller_kind(kind).systems if kind is not None else tuple(
-        dict.fromkeys(r for n in controller_names() for r in controller_kind(n).systems))
-    out: dict[str, Any] = {}
-    for role, path in given.items():
-        if path is None:
-            continue
-        if role not in needs:
-            users = [n for n in controller_names() if role in controller_kind(n).systems]
-            raise ParameterError(f"--{role}-system applies to controller "
-                                 f"{' or '.join(users)}, not {kind}")
-        system = read_system(path)
-        out[role] = loop_system(system, source=str(path),
-                                no_rule_value=getattr(args, "no_rule_value", None))
-    for role, default in default_systems(tuple(r for r in needs if r not in out)).items():
-        out[role] = default
-    return out
-
-
-def systems_record(systems: dict[str, Any] | None) -> tuple[tuple[str, str, str], ...]:
-    """(role, source, sha256) of the systems read from files, for records and cache keys; a
-    file that holds the paper's system itself (e.g. the shipped ``paper-du.fis``) is the
-    paper's and is not recorded."""
-    from ..fuzzy.loop import LoopSystem, system_digest
-    from ..paper import paper_fuzzy_system
-
-    if not systems:
-        return ()
-    return tuple((role, s.source, s.digest) for role, s in sorted(systems.items())
-                 if isinstance(s, LoopSystem)
-                 and s.digest != system_digest(paper_fuzzy_system(role)))
-
-
-def parse_gains_pairs(text: str) -> dict[str, float]:
-    """Parse ``NAME=VALUE,...`` into floats (names lower-cased; each given once).
-
-    Raises
-    ------
-    ParameterError
-        An item without ``=``, a name given twice, or a value that is not a number.
-    """
-    gains: dict[str, float] = {}
-    for item in filter(None, (s.strip() for s in text.split(","))):
-        name, sep, value = item.partition("=")
-        name = name.strip().lower()
-        if not sep or not name.isidentifier():
-            raise ParameterError(f"--gains expects a gains file (.toml) or NAME=VALUE pairs "
-                                 f"(a name is letters, digits and _), got {item!r}")
-        if name in gains:
-            raise ParameterError(f"gain {name} is given twice in --gains; give each once")
-        try:
-            gains[name] = float(value)
-        except ValueError:
-            raise ParameterError(f"gain {name}: {value.strip()!r} is not a number") from None
-    return gains
+    files = {role: getattr(args, f"{role}_system", None) for role in ("du", "alpha")}
+    return load_systems(kind, {r: p for r, p in files.items() if p is not None},
+                        getattr(args, "no_rule_value", None))
 
 
 class ControllerChoice:
@@ -253,24 +158,18 @@ class ControllerChoice:
         self.gains = gains  #: every gain of the kind, checked [SI]
         self.ts = ts  #: sample time [s]
         self.source = source  #: the gains file, if one was read
-        self.systems: dict[str, Any] | None = None  #: fuzzy systems from files (after build)
+        self.systems: dict[str, Any] | None = None  #: fuzzy systems from files (once built)
 
     @property
     def tuned(self) -> TunedGains | None:
         """The tuning record of the gains file, if it has one."""
         return None if self.source is None else self.source.tuned
 
-    def build(self, args: argparse.Namespace) -> Any:
-        """The controller, with the options given on the command line."""
-        kind = controller_kind(self.kind)
-        options = options_from_args(args, self.kind)
-        self.systems = systems_from_args(args, self.kind)
-        return kind.build(self.gains, dt=self.ts, options=options, systems=self.systems)
-
 
 def options_from_args(args: argparse.Namespace, kind_name: str) -> dict[str, Any]:
-    """The controller options given on the command line (:data:`OPTION_FLAGS`) for the
-    registered controller ``kind_name``.
+    """The controller options given on the command line (the registry's
+    :func:`~fuzzyservo.registry.controller_options`) for the registered controller
+    ``kind_name``.
 
     Raises
     ------
@@ -279,14 +178,14 @@ def options_from_args(args: argparse.Namespace, kind_name: str) -> dict[str, Any
     """
     kind = controller_kind(kind_name)
     options = {}
-    for key, flag in OPTION_FLAGS.items():
-        value = getattr(args, key, None)
+    for o in controller_options():
+        value = getattr(args, o.name, None)
         if value is None:
             continue
-        if key not in kind.options:
-            raise ParameterError(f"{flag} does not apply to controller {kind_name} "
+        if o.name not in kind.option_names:
+            raise ParameterError(f"{o.flag} does not apply to controller {kind_name} "
                                  f"({kind.title})")
-        options[key] = value
+        options[o.name] = value
     return options
 
 

@@ -16,11 +16,10 @@ from ..export.targets import (
     export_servo_fmu,
     generate_c,
 )
-from ..registry import DEFAULT_SUBSTEP, build_plant
+from ..registry import DEFAULT_SUBSTEP, build_plant, controller_options
 from . import HELP
 from ._plantargs import add_plant_arguments, params_from_args
 from ._runargs import (
-    OPTION_FLAGS,
     add_controller_arguments,
     add_delay_argument,
     add_plant_choice,
@@ -115,8 +114,7 @@ def _run_c(args: argparse.Namespace) -> int:
 
 
 _PLANT_ONLY = ("start", "delay")
-_CONTROLLER_ONLY = ("controller", "gains", "du_system", "alpha_system", "no_rule_value",
-                    *OPTION_FLAGS)
+_CONTROLLER_ONLY = ("controller", "gains", "du_system", "alpha_system", "no_rule_value")
 
 
 def _run_fmu(args: argparse.Namespace) -> int:
@@ -132,7 +130,8 @@ def _run_fmu(args: argparse.Namespace) -> int:
                                                                           None)))
         print(f"wrote {path} (controller {cc.kind}, {cc.real}, ts = {cc.ts:g} s)")
         return 0
-    given = [k for k in _CONTROLLER_ONLY if getattr(args, k, None) is not None]
+    given = [k for k in (*_CONTROLLER_ONLY, *(o.name for o in controller_options()))
+             if getattr(args, k, None) is not None]
     if given or args.real != "double":
         flag = "--float" if not given else "--" + given[0].replace("_", "-")
         raise ParameterError(f"{flag} applies to a controller FMU; --plant exports the servo "

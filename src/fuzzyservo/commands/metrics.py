@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from .._io import strict_json
-from ..analysis.step_metrics import step_metrics
+from ..analysis.step_metrics import METRIC_UNITS, step_metrics
 from ..files import read_run_csv
 from . import HELP
 
@@ -24,23 +24,8 @@ __all__ = ["REQUIRED_COLUMNS", "UNITS", "print_metrics", "register", "run"]
 #: Columns the command needs; others (``alpha``, plant states) are ignored.
 REQUIRED_COLUMNS: tuple[str, ...] = ("t", "r", "y", "u")
 
-#: Units of each metric for a run CSV (position in m, command as a fraction of rated input).
-UNITS: dict[str, str] = {
-    "rise_time": "s",
-    "settling_time": "s",
-    "settling_time_5": "s",
-    "overshoot": "%",
-    "peak": "m",
-    "peak_time": "s",
-    "steady_state_error": "m",
-    "iae": "m*s",
-    "ise": "m^2*s",
-    "itae": "m*s^2",
-    "itse": "m^2*s^2",
-    "u_max": "1",
-    "u_sq_integral": "s",
-    "u_total_variation": "1",
-}
+#: Units of each metric for a run CSV (:data:`fuzzyservo.analysis.step_metrics.METRIC_UNITS`).
+UNITS: dict[str, str] = METRIC_UNITS
 
 
 def register(subparsers: Any) -> None:

@@ -24,19 +24,17 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from .._io import check_output_path
 from ..analysis.autotune import TunedGains
 from ..errors import InputError, ParameterError
-from ..paper import named_set
-from ..plant import ServoParams, with_overrides
+from ..plant import ServoParams
 from ..plots.runs import FIGURE_FORMATS, runs_figure, save_figure
-from ..registry import DEFAULT_SUBSTEP, build_plant, controller_kind
-from ..sim import parse_reference, simulate, simulate_open_loop
+from ..registry import DEFAULT_SUBSTEP, build_plant, controller_kind, controller_options
+from ..run import BuiltRun, RunSpec, check_start, servo_params
+from ..sim import simulate_open_loop
 from ..sim.open_loop import MAX_RHS_EVALUATIONS
 from . import HELP
-from ._plantargs import add_plant_arguments, params_from_args, params_given
+from ._plantargs import add_plant_arguments, overrides_from_args, params_given, set_name
 from ._runargs import (
     ControllerChoice,
     add_controller_arguments,
@@ -148,18 +146,14 @@ def _check_outputs(args: argparse.Namespace) -> None:
                              f"names")
 
 
-def _system_notes(choice: ControllerChoice) -> list[str]:
+def _system_notes(built: BuiltRun, tuned: TunedGains | None) -> list[str]:
     """The scaling of each fuzzy system read from a file, and a gains file's systems that are
     not the ones of this run."""
-    from ..fuzzy.loop import LoopSystem
-
-    systems = sorted((choice.systems or {}).items())
-    notes = [f"{role} system {s.describe(role)}" for role, s in systems
-             if isinstance(s, LoopSystem)]
-    tuned = choice.tuned
+    loaded = built.systems
+    notes = list(built.notes())
     if tuned is not None:
         then = {role: (src, d) for role, src, d in tuned.setup.systems}
-        now = {role: (src, d) for role, src, d in systems_record(choice.systems)}
+        now = {role: (src, d) for role, src, d in systems_record(loaded)}
         for role in sorted(set(then) | set(now)):
             if then.get(role, (None, None))[1] != now.get(role, (None, None))[1]:
                 was = f"{role} system {then[role][0]}" if role in then else \
@@ -196,6 +190,8 @@ class RunSettings:
     reference: str  #: reference spec (offset from the start) [m]
     delay: float  #: transport delay [s]
     params: ServoParams  #: servo parameters
+    param_set: str  #: the named set they start from
+    overrides: tuple[tuple[str, float], ...]  #: what replaces the set's values [SI]
     notes: tuple[str, ...]  #: what came from the gains file, and what differs from it
 
 
@@ -219,11 +215,12 @@ def _settings(args: argparse.Namespace, tuned: TunedGains | None, ts: float,
     duration = pick("duration", args.duration, s and s.duration, "{:g} s")
     reference = pick("reference", args.reference, s and f"step:{s.step!r}", "reference {}")
     if s is not None and not params_given(args):
-        params = with_overrides(named_set(s.param_set), dict(s.overrides))
+        param_set, overrides = s.param_set, tuple(s.overrides)
         from_file.append(f"set {s.param_set}" + "".join(f", {k}={v!r}" for k, v in
                                                          s.overrides))
     else:
-        params = params_from_args(args)
+        param_set, overrides = set_name(args), tuple(overrides_from_args(args).items())
+    params = servo_params(param_set, overrides)
     if args.delay is None and s is not None:
         delay = s.delay
         from_file.append(f"delay {delay:g} s")
@@ -249,11 +246,10 @@ def _settings(args: argparse.Namespace, tuned: TunedGains | None, ts: float,
             notes.append(f"{path} was tuned {' and '.join(differs)}; this run differs"
                          + (" (kde is per sample: the same gains act differently)"
                             if ts != s.ts and _per_sample(s.controller) else ""))
-    if not 0.0 < start < 1.0:
-        raise ParameterError(f"--start must be a fraction of the stroke in (0, 1), "
-                             f"got {start!r}")
+    check_start(start)
     return RunSettings(plant=plant, start=start, duration=duration, reference=reference,
-                       delay=delay, params=params, notes=tuple(notes))
+                       delay=delay, params=params, param_set=param_set, overrides=overrides,
+                       notes=tuple(notes))
 
 
 def _per_sample(controller: str) -> bool:
@@ -263,10 +259,11 @@ def _per_sample(controller: str) -> bool:
 
 @dataclass(frozen=True, slots=True)
 class ClosedLoop:
-    """A closed-loop run as ``fuzzyservo simulate`` makes it (and the browser page, which
-    parses its settings with this command's parser, so that the command it shows reproduces
-    the run exactly)."""
+    """A closed-loop run as ``fuzzyservo simulate`` makes it: the command line resolved into
+    a :class:`~fuzzyservo.run.RunSpec` (a gains file's record filling the gaps), built and
+    run as every front end runs one."""
 
+    spec: RunSpec  #: the run, as every front end describes one
     result: Any  #: the run (:class:`fuzzyservo.sim.SimResult`)
     settings: RunSettings  #: plant, start, duration, reference, delay, parameters
     choice: ControllerChoice  #: controller kind, gains, sample time, systems from files
@@ -285,19 +282,25 @@ def closed_loop(args: argparse.Namespace) -> ClosedLoop:
     if args.command is not None:
         raise InputError("--command is the open-loop command: add --open-loop, or drop it")
     choice = controller_from_args(args)
-    ctl = choice.build(args)
     run_ = _settings(args, choice.tuned, choice.ts, str(args.gains))
-    notes = _system_notes(choice)
-    reference = parse_reference(run_.reference)
-    if args.seed < 0:
-        raise ParameterError(f"--seed must be a non-negative integer, got {args.seed}")
-    plant = build_plant(run_.plant, run_.params, run_.start * run_.params.cylinder.stroke,
-                        substep=args.substep)
-    result = simulate(ctl, plant, reference, duration=run_.duration, delay=run_.delay,
-                      noise_std=args.noise_std, rng=np.random.default_rng(args.seed))
+    spec = RunSpec(
+        controller=choice.kind, gains=tuple(choice.gains.items()),
+        options=tuple((o.name, getattr(args, o.name)) for o in controller_options()
+                      if getattr(args, o.name, None) is not None),
+        systems=tuple((role, str(path)) for role, path in
+                      (("du", args.du_system), ("alpha", args.alpha_system))
+                      if path is not None),
+        no_rule_value=args.no_rule_value, plant=run_.plant, param_set=run_.param_set,
+        overrides=run_.overrides, reference=run_.reference, duration=run_.duration,
+        ts=choice.ts, delay=run_.delay, noise_std=args.noise_std, seed=args.seed,
+        start=run_.start, substep=args.substep)
+    built = spec.build()
+    choice.systems = built.systems
+    notes = _system_notes(built, choice.tuned)
+    result = built.simulate()
     title = f"{choice.kind} on the {run_.plant} plant, reference {run_.reference}"
-    return ClosedLoop(result=result, settings=run_, choice=choice, notes=tuple(notes),
-                      title=title)
+    return ClosedLoop(spec=spec, result=result, settings=run_, choice=choice,
+                      notes=tuple(notes), title=title)
 
 
 def run(args: argparse.Namespace) -> int:

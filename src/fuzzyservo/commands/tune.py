@@ -37,7 +37,6 @@ start + ``--step`` within the stroke, the transducer resolution no coarser than 
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 from pathlib import Path
@@ -173,10 +172,9 @@ def _given(args: argparse.Namespace, name: str) -> Any:
 
 def _setup(args: argparse.Namespace, params: ServoParams,
            systems: dict[str, Any] | None = None) -> TuningSetup:
-    for name, value in (("--max-overshoot", args.max_overshoot), ("--max-sse", args.max_sse),
-                        ("--max-u", args.max_u)):
-        if value is not None and not (math.isfinite(value) and value >= 0.0):
-            raise ParameterError(f"{name} must be a finite number >= 0, got {value!r}")
+    constraints = TuningConstraints.from_limits(max_overshoot=args.max_overshoot,
+                                                max_sse_percent=args.max_sse,
+                                                max_u=args.max_u)
     overrides = tuple(overrides_from_args(args).items()) if args.robust is None else ()
     return TuningSetup(
         controller=args.controller, plant=_given(args, "plant"), param_set=set_name(args),
@@ -184,9 +182,7 @@ def _setup(args: argparse.Namespace, params: ServoParams,
         duration=_given(args, "duration"), ts=_given(args, "ts"),
         delay=delay_from_args(args.delay, params),
         objective=args.objective,
-        constraints=TuningConstraints(max_overshoot=args.max_overshoot,
-                                      max_steady_state_error=args.max_sse / 100.0,
-                                      max_u=args.max_u),
+        constraints=constraints,
         seed=args.seed, popsize=args.popsize, maxiter=args.maxiter, patience=args.patience,
         rtol=args.rtol, spread=args.spread, restarts=args.restarts, polish=args.polish,
         systems=systems_record(systems))

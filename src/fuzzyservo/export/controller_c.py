@@ -238,7 +238,7 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
     digest = _tables_digest(tables) if tables else ""
 
     options = ", ".join(
-        f"{o} = {_option_text(getattr(controller, o))}" for o in kind.options
+        f"{o} = {_option_text(getattr(controller, o))}" for o in kind.option_names
         if hasattr(controller, o)) or "none"
     title = law.title if not has_alpha else f"{law.title}, self-tuning"
     info = [

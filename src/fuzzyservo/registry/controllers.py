@@ -44,7 +44,10 @@ __all__ = [
     "CONTROLLERS",
     "ControllerKind",
     "GainSpec",
+    "OptionSpec",
     "build_controller",
+    "controller_colour",
+    "controller_options",
     "controller_kind",
     "controller_names",
     "default_systems",
@@ -127,6 +130,126 @@ class GainSpec:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class OptionSpec:
+    """One keyword option of a controller kind, declared once for every front end.
+
+    The command line's flag (``--anti-windup``) and its help, the browser page's widget, the
+    keys a sweep spec's ``options`` table takes and their validation are all made from this
+    declaration (docs/architecture.md, "Registries").
+
+    Parameters
+    ----------
+    name : str
+        Keyword of the controller class (``anti_windup``); the flag is ``--anti-windup``.
+    type : type
+        ``str`` or ``float``: the type of the value.
+    default : object
+        The class's value when the option is not given (shown in help texts).
+    choices : tuple of str
+        The values a ``str`` option takes (empty: any text, or a number for ``float``).
+    unit : str
+        Unit of a ``float`` option ("s"); empty for a choice.
+    help : str
+        What the option does, starting with the kinds it applies to ("PID family: ...").
+    offered : bool
+        Offered by the front ends (a command-line flag, a widget of the page, a key of a
+        sweep spec); False for an option only code sets (the command limits).
+    """
+
+    name: str
+    type: type[Any] = str
+    default: Any = None
+    choices: tuple[str, ...] = ()
+    unit: str = ""
+    help: str = ""
+    offered: bool = True
+
+    @property
+    def flag(self) -> str:
+        """The command-line flag (``--anti-windup``)."""
+        return "--" + self.name.replace("_", "-")
+
+    @property
+    def label(self) -> str:
+        """The option's name in words (``anti windup``), as the page labels it."""
+        return self.name.replace("_", " ")
+
+    @property
+    def metavar(self) -> str | None:
+        """The flag's metavar: none for a choice (argparse lists the choices), the unit in
+        capitals for a number (``S``)."""
+        if self.choices:
+            return None
+        return (self.unit or "x").upper() if self.type is float else "TEXT"
+
+    def default_text(self) -> str:
+        """The default as help texts show it (``clamping``, ``0``)."""
+        return f"{self.default:g}" if isinstance(self.default, float) else str(self.default)
+
+    def help_text(self) -> str:
+        """The flag's help: :attr:`help`, the unit in brackets, then the default."""
+        unit = f" [{self.unit}]" if self.unit else ""
+        return f"{self.help}{unit} (default {self.default_text()})"
+
+    def parse(self, value: Any, where: str = "") -> Any:
+        """``value`` as the option's type, checked against its choices.
+
+        Raises
+        ------
+        ParameterError
+            A value not among the choices, or not a number for a ``float`` option
+            (``where`` prefixes the message).
+        """
+        if self.type is float:
+            try:  # the class checks the range (its messages are the command line's)
+                if isinstance(value, bool):
+                    raise TypeError
+                return float(value)
+            except (TypeError, ValueError):
+                raise ParameterError(f"{where}option {self.name} must be a number, got "
+                                     f"{value!r}") from None
+        text = str(value) if not isinstance(value, str) else value
+        if self.choices and text not in self.choices:
+            raise ParameterError(f"{where}option {self.name} must be one of "
+                                 f"{', '.join(self.choices)}, got {value!r}")
+        return text
+
+    def text(self, value: Any) -> str:
+        """``value`` as the command line writes it (a number as its shortest repr)."""
+        return repr(float(value)) if self.type is float else str(value)
+
+
+#: Options of the package's kinds by name; a kind may also name one of these by its string.
+ANTI_WINDUP = OptionSpec(name="anti_windup", choices=("clamping", "back-calculation", "none"),
+                         default="clamping", help="PID family: anti-windup scheme")
+TRACKING_TIME = OptionSpec(name="tracking_time", type=float, default=None, unit="s",
+                           help="PID family: back-calculation time constant", offered=False)
+U_MIN = OptionSpec(name="u_min", type=float, default=-1.0, unit="-",
+                   help="lower command limit", offered=False)
+U_MAX = OptionSpec(name="u_max", type=float, default=1.0, unit="-",
+                   help="upper command limit", offered=False)
+INITIAL_ERROR = OptionSpec(name="initial_error", choices=("zero", "first"), default="zero",
+                           help="fuzzy PIs: e(-1) = 0 or e(-1) = e(0)")
+DE_PER = OptionSpec(name="de_per", choices=("sample", "second"), default="sample",
+                    help="fuzzy PIs: Δe per sample or per second")
+FILTER_TIME = OptionSpec(name="filter_time", type=float, default=0.0, unit="s",
+                         help="fuzzy PIs: measurement filter time constant")
+_KNOWN_OPTIONS = {o.name: o for o in (ANTI_WINDUP, TRACKING_TIME, U_MIN, U_MAX, INITIAL_ERROR,
+                                      DE_PER, FILTER_TIME)}
+
+
+def _option(o: OptionSpec | str) -> OptionSpec:
+    """An option given by its declaration, or by name: one of :data:`_KNOWN_OPTIONS`, else a
+    keyword that only code sets (not offered)."""
+    if isinstance(o, OptionSpec):
+        return o
+    if not isinstance(o, str):
+        raise ParameterError(f"a controller option is an OptionSpec or a keyword name, got "
+                             f"{o!r}")
+    return _KNOWN_OPTIONS.get(o) or OptionSpec(name=o, type=float, offered=False)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class ControllerKind:
     """A controller a user can name: its maths (``cls``), gains, options and tuning.
 
@@ -142,8 +265,10 @@ class ControllerKind:
         The kind's gains, in the order they are written.
     implied : mapping of str to float
         Gains of ``cls`` that the kind fixes (``pid``: b = c = 1) [units of those gains].
-    options : tuple of str
-        Keyword options of ``cls`` the kind takes (anti-windup, fuzzy PI conventions, limits).
+    options : tuple of OptionSpec (or str)
+        Keyword options of ``cls`` the kind takes (anti-windup, fuzzy PI conventions, limits),
+        each declared once (:class:`OptionSpec`); a name alone is one of the package's
+        declarations or, if none has that name, a keyword only code sets.
     systems : tuple of str
         Fuzzy systems the kind needs (``"du"``, ``"alpha"``).
     tuning : {"search", "paper-steps"}
@@ -154,6 +279,9 @@ class ControllerKind:
     rise_gain : str or None
         For ``"paper-steps"``: the output gain raised in step 2 until the rise time of step 1
         is recovered.
+    colour : str or None
+        Colour of the kind's runs in the browser page (``#rrggbb``); None: one of a fallback
+        palette by the kind's position in the registry.
     """
 
     name: str
@@ -161,11 +289,28 @@ class ControllerKind:
     cls: type[Any]
     gains: tuple[GainSpec, ...]
     implied: Mapping[str, float] = field(default_factory=dict)
-    options: tuple[str, ...] = ()
+    options: tuple[OptionSpec, ...] = ()
     systems: tuple[str, ...] = ()
     tuning: Literal["search", "paper-steps"] = "search"
     stage_kind: str | None = None
     rise_gain: str | None = None
+    colour: str | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "options", tuple(_option(o) for o in self.options))
+
+    @property
+    def option_names(self) -> tuple[str, ...]:
+        """Keywords of the kind's options, in order."""
+        return tuple(o.name for o in self.options)
+
+    def option(self, name: str) -> OptionSpec:
+        """The declaration of option ``name``."""
+        for o in self.options:
+            if o.name == name:
+                return o
+        raise ParameterError(f"controller {self.name} takes no option {name!r}; its "
+                             f"options: {', '.join(self.option_names) or 'none'}")
 
     @property
     def gain_names(self) -> tuple[str, ...]:
@@ -274,10 +419,10 @@ class ControllerKind:
             Bad gains, an option the kind does not take, or a missing fuzzy system.
         """
         options = dict(options or {})
-        bad = [o for o in options if o not in self.options]
+        bad = [o for o in options if o not in self.option_names]
         if bad:
             raise ParameterError(f"controller {self.name} takes no option {bad[0]!r}; its "
-                                 f"options: {', '.join(self.options) or 'none'}")
+                                 f"options: {', '.join(self.option_names) or 'none'}")
         g = dict(zip(self.cls.gain_names, self.class_row(self.check_gains(gains)).tolist(),
                      strict=True))
         if not self.systems:
@@ -311,8 +456,8 @@ def _paper_system(role: str) -> KernelSystem:
     return pack({"du": du_system, "alpha": alpha_system}[role]())
 
 
-_PID_OPTIONS = ("anti_windup", "tracking_time", "u_min", "u_max")
-_FUZZY_OPTIONS = ("initial_error", "de_per", "filter_time", "u_min", "u_max")
+_PID_OPTIONS = (ANTI_WINDUP, TRACKING_TIME, U_MIN, U_MAX)
+_FUZZY_OPTIONS = (INITIAL_ERROR, DE_PER, FILTER_TIME, U_MIN, U_MAX)
 
 # Tuning boxes (docs/model.md, "Tuning"): PID gains span decades (log scale); the paper's PIDs
 # (0.5-1.2) sit inside. ki reaches 1e3: the 2-DOF PID on the nonlinear plant ends at ki = 226
@@ -336,16 +481,22 @@ _KDE = GainSpec(name="kde", unit="1/m per sample",
                 search=(10.0, 1e6))
 _KDU = GainSpec(name="kdu", unit="-", description="output scaling K_Δu", search=(1e-5, 1.0))
 
+# Colours: the study's fixed colour of each controller (plots.study_figures.CONTROLLER_COLOURS,
+# a test holds them equal): tuned PID brown, 2-DOF PID purple, fuzzy PI green, self-tuning
+# fuzzy PI blue; the P and PI, which the study has only as the paper's PIDs, take those
+# runs' red and orange.
 _CONTROLLERS: dict[str, ControllerKind] = {
     "p": ControllerKind(
         name="p", title="P", cls=PIDController, gains=(_KP,),
-        implied={"ki": 0.0, "kd": 0.0, "n": 100.0, "b": 1.0, "c": 1.0}, options=_PID_OPTIONS),
+        implied={"ki": 0.0, "kd": 0.0, "n": 100.0, "b": 1.0, "c": 1.0}, options=_PID_OPTIONS,
+        colour="#d62728"),
     "pi": ControllerKind(
         name="pi", title="PI", cls=PIDController, gains=(_KP, _KI),
-        implied={"kd": 0.0, "n": 100.0, "b": 1.0, "c": 1.0}, options=_PID_OPTIONS),
+        implied={"kd": 0.0, "n": 100.0, "b": 1.0, "c": 1.0}, options=_PID_OPTIONS,
+        colour="#ff7f0e"),
     "pid": ControllerKind(
         name="pid", title="PID, 1-DOF", cls=PIDController, gains=(_KP, _KI, _KD, _N),
-        implied={"b": 1.0, "c": 1.0}, options=_PID_OPTIONS),
+        implied={"b": 1.0, "c": 1.0}, options=_PID_OPTIONS, colour="#8c564b"),
     "pid2": ControllerKind(
         name="pid2", title="PID, 2-DOF", cls=PIDController,
         gains=(_KP, _KI, _KD, _N,
@@ -355,14 +506,14 @@ _CONTROLLERS: dict[str, ControllerKind] = {
                # e = kp (1 - b)/ki that decides the overshoot on this plant (model-notes §5.1)
                GainSpec(name="c", unit="-", description="setpoint weight, derivative path",
                         default=1.0, held=0.0, log=False, slider=(0.0, 1.0))),
-        options=_PID_OPTIONS),
+        options=_PID_OPTIONS, colour="#9467bd"),
     "fpi": ControllerKind(
         name="fpi", title="fuzzy PI", cls=FuzzyPIController, gains=(_KE, _KDE, _KDU),
-        options=_FUZZY_OPTIONS, systems=("du",)),
+        options=_FUZZY_OPTIONS, systems=("du",), colour="#2ca02c"),
     "stfpi": ControllerKind(
         name="stfpi", title="self-tuning fuzzy PI", cls=SelfTuningFuzzyPIController,
         gains=(_KE, _KDE, _KDU), options=_FUZZY_OPTIONS, systems=("du", "alpha"),
-        tuning="paper-steps", stage_kind="fpi", rise_gain="kdu"),
+        tuning="paper-steps", stage_kind="fpi", rise_gain="kdu", colour="#1f77b4"),
 }
 
 #: Every controller kind by name (read-only view of the registry).
@@ -438,6 +589,15 @@ def register_controller(kind: ControllerKind, *, replace: bool = False) -> Contr
     if law is None or not hasattr(kind.cls, "gain_names"):
         raise ParameterError(f"controller {kind.name}: class {kind.cls.__name__} has no law "
                              f"(a fuzzyservo.control.LawController with law and gain_names)")
+    for o in kind.options:
+        if not o.offered:
+            continue
+        other = next((k for k in _CONTROLLERS.values() if k.name != kind.name
+                      for p in k.options if p.offered and p.name == o.name and p != o), None)
+        if other is not None:
+            raise ParameterError(f"controller {kind.name}: option {o.name} is declared "
+                                 f"otherwise by controller {other.name} (one flag, "
+                                 f"{o.flag}, serves both: give the same OptionSpec)")
     _CONTROLLERS[kind.name] = kind
     return kind
 
@@ -453,6 +613,37 @@ def controller_names() -> tuple[str, ...]:
     """The registered controller names, in registry order."""
     _load_plugins()
     return tuple(_CONTROLLERS)
+
+
+#: Colours of kinds registered without one (e.g. by a user's module): Bokeh's Category10 after
+#: the study's, by the kind's position among them.
+FALLBACK_COLOURS = ("#17becf", "#bcbd22", "#7f7f7f", "#e377c2", "#8c564b", "#9467bd")
+
+
+def controller_colour(name: str) -> str:
+    """The colour of the runs of kind ``name``: its own (:attr:`ControllerKind.colour`), else
+    one of :data:`FALLBACK_COLOURS` by its position among the kinds without one (an unknown
+    name takes the first)."""
+    _load_plugins()
+    kind = _CONTROLLERS.get(name)
+    if kind is not None and kind.colour is not None:
+        return kind.colour
+    names = [n for n, k in _CONTROLLERS.items() if k.colour is None]
+    i = names.index(name) if name in names else 0
+    return FALLBACK_COLOURS[i % len(FALLBACK_COLOURS)]
+
+
+def controller_options() -> tuple[OptionSpec, ...]:
+    """The options the front ends offer (:attr:`OptionSpec.offered`) of every registered
+    kind, each once, in the order of their first kind: the command line's flags, the page's
+    widgets and the keys of a sweep spec's ``options``."""
+    _load_plugins()
+    out: dict[str, OptionSpec] = {}
+    for kind in _CONTROLLERS.values():
+        for o in kind.options:
+            if o.offered:
+                out.setdefault(o.name, o)
+    return tuple(out.values())
 
 
 def controller_kind(name: str) -> ControllerKind:

@@ -1,9 +1,10 @@
 """Replay one run of a sweep: the ``fuzzyservo simulate`` command that computes it again.
 
-Every number is written with ``repr`` (the shortest text that reads back as the same float),
-the noise as its seed, the gains as NAME=VALUE pairs (a gains file's values, not its path, so
-that its tuning record cannot fill in anything), and every option the spec sets: the command
-gives the dataset's row to the last bit (tests/sweep/test_replay.py).
+The run is a :class:`~fuzzyservo.run.RunSpec` and the command its ``to_argv``: every number is
+written with ``repr`` (the shortest text that reads back as the same float), the noise as its
+seed, the gains as NAME=VALUE pairs (a gains file's values, not its path, so that its tuning
+record cannot fill in anything), and every option the spec sets: the command gives the
+dataset's row to the last bit (tests/sweep/test_replay.py).
 """
 
 from __future__ import annotations
@@ -12,60 +13,45 @@ import shlex
 from collections.abc import Mapping
 from typing import Any
 
+from ..run import RunSpec
 from .spec import SweepSpec
 
-__all__ = ["OPTION_FLAGS", "simulate_argv", "simulate_command"]
-
-#: Controller options a spec may set, with the ``fuzzyservo simulate`` flag of each (the
-#: command line's ``OPTION_FLAGS``; a test keeps them equal). A sweep takes no option that
-#: the command cannot replay.
-OPTION_FLAGS: dict[str, str] = {
-    "anti_windup": "--anti-windup",
-    "initial_error": "--initial-error",
-    "de_per": "--de-per",
-    "filter_time": "--filter-time",
-}
+__all__ = ["run_spec", "simulate_argv", "simulate_command"]
 
 
 def _num(x: float) -> str:
     return repr(float(x))
 
 
-def simulate_argv(spec: SweepSpec, row: Mapping[str, Any]) -> list[str]:
-    """Arguments of ``fuzzyservo simulate`` that replay the run of ``row`` (a dict with the
-    dataset's ``controller``, ``noise_seed`` and varied columns)."""
+def run_spec(spec: SweepSpec, row: Mapping[str, Any]) -> RunSpec:
+    """The run of ``row`` (a dict with the dataset's ``controller``, ``noise_seed`` and
+    varied columns) as a :class:`~fuzzyservo.run.RunSpec`."""
     entry = next(e for e in spec.controllers if e.label == row["controller"])
     varied = {v.name: float(row[v.name]) for v in spec.vary}
-    argv = ["simulate", "--plant", spec.plant, "--set", spec.param_set]
     params = dict(spec.overrides)
     params.update({k: v for k, v in varied.items() if "." in k})
-    for name, value in params.items():
-        argv += ["--param", f"{name}={_num(value)}"]
-    argv += ["--start", _num(spec.start), "--ts", _num(spec.ts),
-             "--duration", _num(spec.duration)]
-    if spec.plant == "nonlinear":
-        argv += ["--substep", _num(spec.substep)]
-    argv += ["--delay", _num(varied.get("delay", spec.delay))]
+    reference = spec.reference
     if "amplitude" in varied:
         from ..sim.references import Step, parse_reference
 
         ref = parse_reference(spec.reference)
         assert isinstance(ref, Step)
-        argv += ["--reference", f"step:{_num(varied['amplitude'])}:{_num(ref.time)}"]
-    else:
-        argv += ["--reference", spec.reference]
+        reference = f"step:{_num(varied['amplitude'])}:{_num(ref.time)}"
     std = varied.get("noise_std", spec.noise_std)
-    if std > 0.0:
-        argv += ["--noise-std", _num(std), "--seed", str(int(row["noise_seed"]))]
-    argv += ["--controller", entry.controller,
-             "--gains", ",".join(f"{k}={_num(v)}" for k, v in entry.gains)]
-    for key, value in entry.options:
-        argv += [OPTION_FLAGS[key], _num(value) if isinstance(value, float) else str(value)]
-    for role, path in entry.systems:
-        argv += [f"--{role}-system", path]
-    if entry.no_rule_value is not None:
-        argv += ["--no-rule-value", _num(entry.no_rule_value)]
-    return argv
+    return RunSpec(controller=entry.controller, gains=entry.gains, options=entry.options,
+                   systems=entry.systems, no_rule_value=entry.no_rule_value, plant=spec.plant,
+                   param_set=spec.param_set, overrides=tuple(params.items()),
+                   reference=reference, duration=spec.duration, ts=spec.ts,
+                   delay=varied.get("delay", spec.delay), noise_std=std if std > 0.0 else 0.0,
+                   seed=int(row["noise_seed"]) if std > 0.0 else 0, start=spec.start,
+                   substep=spec.substep)
+
+
+def simulate_argv(spec: SweepSpec, row: Mapping[str, Any]) -> list[str]:
+    """Arguments of ``fuzzyservo simulate`` that replay the run of ``row``: its
+    :func:`run_spec`'s command line, every setting written (``explicit``), so a later change
+    of a default cannot change the replay."""
+    return ["simulate", *run_spec(spec, row).to_argv(explicit=True)]
 
 
 def simulate_command(spec: SweepSpec, row: Mapping[str, Any]) -> str:

@@ -443,17 +443,17 @@ def _controller(i: int, table: Any, base_dir: Path, ts: float) -> ControllerEntr
     options = table.get("options", {})
     if not isinstance(options, dict):
         raise _bad(f"{where}.options", f"must be a table, got {options!r}")
-    bad = [o for o in options if o not in kind.options]
+    bad = [o for o in options if o not in kind.option_names]
     if bad:
         raise _bad(f"{where}.options", f"controller {name} takes no option {bad[0]!r}; its "
-                                       f"options: {', '.join(kind.options) or 'none'}")
-    from .replay import OPTION_FLAGS
-
-    bad = [o for o in options if o not in OPTION_FLAGS]
+                                       f"options: {', '.join(kind.option_names) or 'none'}")
+    bad = [o for o in options if not kind.option(o).offered]
     if bad:  # every run must replay with fuzzyservo simulate, which has no flag for it
         raise _bad(f"{where}.options", f"{bad[0]!r} cannot be set in a sweep (fuzzyservo "
                                        f"simulate could not replay its runs); allowed: "
-                                       f"{', '.join(o for o in kind.options if o in OPTION_FLAGS)}")
+                                       f"{', '.join(o.name for o in kind.options if o.offered)}")
+    for key, value in options.items():  # the values the declaration allows (kept as given)
+        kind.option(key).parse(value, f"{where}.options: ")
     systems: list[tuple[str, str]] = []
     for role in ("du", "alpha"):
         key = f"{role}_system"

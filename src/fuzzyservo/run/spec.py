@@ -1,0 +1,545 @@
+"""One description of a closed-loop run: :class:`RunSpec`, its objects and its command line.
+
+A :class:`RunSpec` names everything that decides a run of ``fuzzyservo simulate`` in closed
+loop: the controller (kind, gains, options, fuzzy systems read from files), the plant (kind,
+parameter set, overrides, start, RK4 step bound) and the run (reference, duration, sample
+time, delay, noise and its seed). :meth:`RunSpec.build` checks it and makes the objects that
+run it (:class:`BuiltRun`), with the messages the command line prints for each bad value;
+:meth:`RunSpec.to_argv` is the ``simulate`` command line that makes the same run and
+:meth:`RunSpec.from_argv` reads one back. The command line (``simulate``), the browser page
+and sweep replays all go through it, so the command a front end shows reproduces its run bit
+for bit (docs/architecture.md, "Runs").
+
+Examples
+--------
+>>> from fuzzyservo.run import RunSpec
+>>> spec = RunSpec(controller="pi", gains=(("kp", 10.0), ("ki", 2.0)), plant="linear")
+>>> spec.to_argv()[:6]
+['--plant', 'linear', '--controller', 'pi', '--gains', 'kp=10.0,ki=2.0']
+>>> RunSpec.from_argv(spec.to_argv()) == spec
+True
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError, UsageError
+from ..paper.published import named_set
+from ..plant import ServoParams, with_overrides
+from ..registry import (
+    DEFAULT_SUBSTEP,
+    build_plant,
+    controller_kind,
+    controller_names,
+    controller_options,
+    default_systems,
+)
+from ..sim import DEFAULT_DELAY, parse_reference, simulate
+
+__all__ = [
+    "DEFAULT_SET",
+    "BuiltRun",
+    "RunSpec",
+    "check_start",
+    "ControllerParts",
+    "load_systems",
+    "parse_delay",
+    "parse_gains_pairs",
+    "parse_param",
+    "servo_params",
+    "systems_record",
+]
+
+#: The parameter set of every command when ``--set`` is not given.
+DEFAULT_SET = "paper"
+
+
+def _num(v: float) -> str:
+    """A float as the command line gets it: Python's shortest repr, which reads back to the
+    same double (``inf`` for the PID's unfiltered derivative)."""
+    return repr(float(v))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RunSpec:
+    """A closed-loop run, as ``fuzzyservo simulate`` takes it (SI units).
+
+    Parameters
+    ----------
+    controller : str
+        Registered controller name.
+    gains : tuple of (str, float)
+        Gains as given, in the kind's units (missing ones take the registry's defaults when
+        built; checked by :meth:`build`).
+    options : tuple of (str, object)
+        Controller options the front ends offer, as (keyword, value): ``anti_windup``,
+        ``initial_error``, ``de_per``, ``filter_time`` [s], ... (the registry's
+        :class:`~fuzzyservo.registry.OptionSpec`); only those set.
+    systems : tuple of (str, str)
+        Fuzzy systems read from files, as (role, path): ``du``, ``alpha``.
+    no_rule_value : float or None
+        Value of a system from a file where no rule fires (None: the file's, else NaN).
+    plant : str
+        Registered plant name.
+    param_set : str
+        Named parameter set.
+    overrides : tuple of (str, float)
+        ``group.field`` values replacing the set's, applied in order [SI].
+    reference : str
+        Reference spec, offset from the start position (``step:0.1``) [m, s].
+    duration : float
+        Simulated time [s].
+    ts : float
+        Controller sample time and sample step of the result [s].
+    delay : float
+        Transport (hose) delay on the command [s].
+    noise_std : float
+        Standard deviation of the measurement noise [m].
+    seed : int
+        Seed of the noise generator.
+    start : float
+        Start position, fraction of the stroke [-].
+    substep : float
+        Nonlinear plant's RK4 step bound [s].
+    """
+
+    controller: str
+    gains: tuple[tuple[str, float], ...] = ()
+    options: tuple[tuple[str, Any], ...] = ()
+    systems: tuple[tuple[str, str], ...] = ()
+    no_rule_value: float | None = None
+    plant: str = "nonlinear"
+    param_set: str = DEFAULT_SET
+    overrides: tuple[tuple[str, float], ...] = ()
+    reference: str = "step:0.1"
+    duration: float = 2.0
+    ts: float = 1e-3
+    delay: float = DEFAULT_DELAY
+    noise_std: float = 0.0
+    seed: int = 0
+    start: float = 0.5
+    substep: float = DEFAULT_SUBSTEP
+
+    # ------------------------------------------------------------------ command line
+
+    def gains_text(self) -> str:
+        """The gains as ``--gains`` takes them: ``NAME=VALUE,...`` (values as repr)."""
+        return ",".join(f"{k}={_num(v)}" for k, v in self.gains)
+
+    def option_args(self) -> list[str]:
+        """The controller options as ``--flag=value`` (what ``simulate``, ``tune`` and
+        ``export`` take alike), each written as its declaration says."""
+        out = []
+        for name, value in self.options:
+            decl = _offered(name)
+            out.append(f"{decl.flag}={decl.text(value)}")
+        return out
+
+    def system_args(self) -> list[str]:
+        """``--du-system``, ``--alpha-system``, ``--no-rule-value``: the fuzzy systems from
+        files (what ``simulate``, ``tune`` and ``export`` take alike)."""
+        out: list[str] = []
+        for role, file in self.systems:
+            out += [f"--{role}-system", file]
+        if self.no_rule_value is not None:
+            out += [f"--no-rule-value={_num(self.no_rule_value)}"]
+        return out
+
+    def parameter_args(self, *, explicit: bool = False) -> list[str]:
+        """``--set`` (unless the default set, or ``explicit``) and ``--param``: the servo's
+        parameters (``simulate`` and ``tune``)."""
+        out = [] if self.param_set == DEFAULT_SET and not explicit else ["--set",
+                                                                         self.param_set]
+        for key, number in self.overrides:
+            out += ["--param", f"{key}={_num(number)}"]
+        return out
+
+    def to_argv(self, *, explicit: bool = False) -> list[str]:
+        """The arguments of ``fuzzyservo simulate`` that make this run (no output option).
+
+        Numbers go as ``--flag=value`` (a negative one, a typo the command must name, would
+        otherwise read as an option of its own) in their shortest repr. A setting at the
+        command's default is left out (no delay, no noise, the default substep and set)
+        unless ``explicit``: a record that must replay the same run whatever later defaults
+        become (sweep replays) writes every one.
+        """
+        out = ["--plant", self.plant, "--controller", self.controller]
+        if self.gains:
+            out += ["--gains", self.gains_text()]
+        out += ["--reference", self.reference, f"--duration={_num(self.duration)}",
+                f"--ts={_num(self.ts)}", f"--start={_num(self.start)}"]
+        if self.delay != 0.0 or explicit:
+            out += [f"--delay={_num(self.delay)}"]
+        if self.noise_std != 0.0:
+            out += [f"--noise-std={_num(self.noise_std)}"]
+        if self.noise_std != 0.0 or self.seed != 0:
+            out += [f"--seed={self.seed}"]
+        if self.substep != DEFAULT_SUBSTEP or (explicit and self.plant == "nonlinear"):
+            out += [f"--substep={_num(self.substep)}"]
+        return [*out, *self.option_args(), *self.system_args(),
+                *self.parameter_args(explicit=explicit)]
+
+    def command(self) -> str:
+        """The shell command of :meth:`to_argv` that also prints the step metrics."""
+        import shlex
+
+        return "fuzzyservo simulate " + shlex.join([*self.to_argv(), "--metrics"])
+
+    @classmethod
+    def from_argv(cls, argv: Sequence[str]) -> RunSpec:
+        """The run of a ``fuzzyservo simulate`` command line (its first word ``simulate``
+        may be left out): the command lines :meth:`to_argv` writes, or any closed-loop one
+        whose gains are ``NAME=VALUE`` pairs and whose delay is a number.
+
+        Raises
+        ------
+        UsageError
+            An argument this reader does not take (an output, a gains file, ``--delay hose``,
+            ``--params FILE``, the open loop): build those with the command itself.
+        ParameterError
+            Gains or ``--param`` values that are not numbers.
+        """
+        words = list(argv)
+        if words[:1] == ["simulate"]:
+            words = words[1:]
+        args = _parser().parse_args(words)
+        options = tuple((o.name, getattr(args, o.name)) for o in controller_options()
+                        if getattr(args, o.name) is not None)
+        systems = tuple((role, getattr(args, f"{role}_system")) for role in ("du", "alpha")
+                        if getattr(args, f"{role}_system") is not None)
+        overrides: dict[str, float] = {}
+        for text in args.param:
+            name, value = parse_param(text)
+            overrides.pop(name, None)  # keep the order in which they take effect
+            overrides[name] = value
+        return cls(controller=args.controller,
+                   gains=tuple(parse_gains_pairs(args.gains or "").items()),
+                   options=options, systems=systems, no_rule_value=args.no_rule_value,
+                   plant=args.plant, param_set=args.param_set or DEFAULT_SET,
+                   overrides=tuple(overrides.items()), reference=args.reference,
+                   duration=args.duration, ts=args.ts, delay=args.delay,
+                   noise_std=args.noise_std, seed=args.seed, start=args.start,
+                   substep=args.substep)
+
+    # ------------------------------------------------------------------ objects
+
+    def params(self) -> ServoParams:
+        """The servo parameters: the set with the overrides."""
+        return servo_params(self.param_set, self.overrides)
+
+    def option_map(self) -> dict[str, Any]:
+        """The options as keyword arguments of the controller class.
+
+        Raises
+        ------
+        ParameterError
+            An option the kind does not take (named by its flag), or a value its declaration
+            refuses.
+        """
+        kind = controller_kind(self.controller)
+        out = {}
+        for name, value in self.options:
+            decl = _offered(name)
+            if name not in kind.option_names:
+                raise ParameterError(f"{decl.flag} does not apply to controller "
+                                     f"{self.controller} ({kind.title})")
+            out[name] = decl.parse(value, f"{decl.flag}: ")
+        return out
+
+    def checked_params(self) -> ServoParams:
+        """The servo parameters, each override checked as ``--param`` checks it.
+
+        Raises
+        ------
+        ParameterError
+            An unknown set, a malformed or non-finite override, or parameters the model
+            refuses.
+        """
+        for key, value in self.overrides:
+            parse_param(f"{key}={_num(value)}")
+        return self.params()
+
+    def checked_delay(self, params: ServoParams) -> float:
+        """The delay [s], checked as ``--delay`` checks it."""
+        return parse_delay(_num(self.delay), params)
+
+    def build_controller(self) -> ControllerParts:
+        """The controller and what it was built from: sample time, gains, options and fuzzy
+        systems checked in that order (what ``export`` takes as well).
+
+        Raises
+        ------
+        ParameterError, InputError, FormatError
+            A bad sample time, gains, an option the kind does not take, an unreadable system.
+        """
+        ts = self.ts
+        if not (isinstance(ts, float | int) and math.isfinite(ts) and ts > 0.0):
+            raise ParameterError(f"--ts must be finite and > 0 s, got {ts!r}")
+        kind = controller_kind(self.controller)
+        gains = kind.check_gains(dict(self.gains))
+        options = self.option_map()
+        systems = load_systems(self.controller, dict(self.systems), self.no_rule_value)
+        controller = kind.build(gains, dt=float(ts), options=options, systems=systems)
+        return ControllerParts(controller=controller, gains=gains, options=options,
+                               systems=systems)
+
+    def build(self) -> BuiltRun:
+        """Check the run and make what runs it, in the command line's order and with its
+        messages: substep, sample time, gains, options, fuzzy systems, controller,
+        parameters, delay, start, reference, seed, plant.
+
+        Raises
+        ------
+        ParameterError, InputError, FormatError
+            Whatever ``fuzzyservo simulate`` would reject for this run (one line, as it
+            prints it).
+        """
+        if not (math.isfinite(self.substep) and self.substep > 0.0):
+            raise ParameterError(f"--substep must be finite and > 0 s, got {self.substep!r}")
+        ctl = self.build_controller()
+        params = self.checked_params()
+        self.checked_delay(params)
+        check_start(self.start)
+        reference = parse_reference(self.reference)
+        if self.seed < 0:
+            raise ParameterError(f"--seed must be a non-negative integer, got {self.seed}")
+        plant = build_plant(self.plant, params, self.start * params.cylinder.stroke,
+                            substep=self.substep)
+        return BuiltRun(spec=self, controller=ctl.controller, plant=plant, params=params,
+                        reference=reference, gains=ctl.gains, options=ctl.options,
+                        systems=ctl.systems)
+
+    def run(self) -> Any:
+        """Build and simulate the run (:meth:`BuiltRun.simulate`)."""
+        return self.build().simulate()
+
+
+@dataclass(frozen=True, slots=True)
+class ControllerParts:
+    """The controller of a :class:`RunSpec` and what it was built from."""
+
+    controller: Any  #: the controller (a registry kind's class)
+    gains: dict[str, float]  #: every gain of the kind, checked [SI]
+    options: dict[str, Any]  #: the controller's options as keywords
+    systems: dict[str, Any] | None  #: fuzzy systems by role, if any was read from a file
+
+
+@dataclass(frozen=True, slots=True)
+class BuiltRun:
+    """The objects of a :class:`RunSpec`: what :func:`fuzzyservo.sim.simulate` takes."""
+
+    spec: RunSpec  #: the run they make
+    controller: Any  #: the controller (a registry kind's class)
+    plant: Any  #: :class:`~fuzzyservo.sim.LinearPlant` or ``NonlinearPlant``
+    params: ServoParams  #: the servo parameters
+    reference: Any  #: the reference (offset from the start position) [m]
+    gains: dict[str, float]  #: every gain of the kind, checked [SI]
+    options: dict[str, Any]  #: the controller's options as keywords
+    systems: dict[str, Any] | None = field(default=None)  #: fuzzy systems, if from files
+
+    def notes(self) -> tuple[str, ...]:
+        """What the command prints as notes for the run: the scaling of each fuzzy system
+        read from a file."""
+        from ..fuzzy.loop import LoopSystem
+
+        return tuple(f"{role} system {s.describe(role)}"
+                     for role, s in sorted((self.systems or {}).items())
+                     if isinstance(s, LoopSystem))
+
+    def rng(self) -> np.random.Generator:
+        """The noise generator, seeded."""
+        return np.random.default_rng(self.spec.seed)
+
+    def simulate(self) -> Any:
+        """The run (:class:`fuzzyservo.sim.SimResult`)."""
+        s = self.spec
+        return simulate(self.controller, self.plant, self.reference, duration=s.duration,
+                        delay=s.delay, noise_std=s.noise_std, rng=self.rng())
+
+
+def _offered(name: str) -> Any:
+    """The declaration of the offered option ``name`` (of any registered kind)."""
+    for o in controller_options():
+        if o.name == name:
+            return o
+    raise ParameterError(f"no controller offers an option {name!r}; the options: "
+                         f"{', '.join(o.name for o in controller_options())}")
+
+
+def parse_delay(text: str | None, params: ServoParams) -> float:
+    """The delay [s] that ``--delay`` names: seconds, or ``hose`` for the parameter set's
+    ``delay.transport_delay`` (``None``: the default, none).
+
+    Raises
+    ------
+    ParameterError
+        Neither a finite number >= 0 nor ``hose``.
+    """
+    if text is None:
+        return DEFAULT_DELAY
+    if text.strip().lower() == "hose":
+        return float(params.delay.transport_delay)
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0.0):
+        raise ParameterError(f"--delay must be a number of seconds >= 0 or 'hose' (the "
+                             f"parameter set's delay.transport_delay), got {text!r}")
+    return value
+
+
+def check_start(start: float) -> None:
+    """Refuse a start position outside the stroke (a fraction in (0, 1)).
+
+    Raises
+    ------
+    ParameterError
+        ``start`` not in (0, 1).
+    """
+    if not 0.0 < start < 1.0:
+        raise ParameterError(f"--start must be a fraction of the stroke in (0, 1), "
+                             f"got {start!r}")
+
+
+def servo_params(param_set: str, overrides: Sequence[tuple[str, float]] | Mapping[str, float]
+                 ) -> ServoParams:
+    """The named parameter set with ``{"group.field": value}`` overrides applied."""
+    params = named_set(param_set)
+    items = dict(overrides.items() if isinstance(overrides, Mapping) else overrides)
+    return with_overrides(params, items) if items else params
+
+
+def load_systems(kind: str | None, files: Mapping[str, Any],
+                 no_rule_value: float | None = None) -> dict[str, Any] | None:
+    """The fuzzy systems of controller ``kind`` (None: of every controller of the
+    registry, as the study runs them) with those of ``files`` (role -> path) read from
+    their files and the paper's for the other roles; None when no file is given.
+
+    Raises
+    ------
+    ParameterError, InputError, FormatError
+        A system for a controller without that role, ``no_rule_value`` without a file, an
+        unreadable or malformed file, a system that is not two-input or has no value when
+        no rule fires.
+    """
+    from ..formats import read_system
+    from ..fuzzy.loop import loop_system
+
+    given = {role: files.get(role) for role in ("du", "alpha")}
+    if all(v is None for v in given.values()):
+        if no_rule_value is not None:
+            raise ParameterError("--no-rule-value applies to a system from a file: add "
+                                 "--du-system or --alpha-system")
+        return None
+    needs = controller_kind(kind).systems if kind is not None else tuple(
+        dict.fromkeys(r for n in controller_names() for r in controller_kind(n).systems))
+    out: dict[str, Any] = {}
+    for role, path in given.items():
+        if path is None:
+            continue
+        if role not in needs:
+            users = [n for n in controller_names() if role in controller_kind(n).systems]
+            raise ParameterError(f"--{role}-system applies to controller "
+                                 f"{' or '.join(users)}, not {kind}")
+        system = read_system(path)
+        out[role] = loop_system(system, source=str(path), no_rule_value=no_rule_value)
+    for role, default in default_systems(tuple(r for r in needs if r not in out)).items():
+        out[role] = default
+    return out
+
+
+def systems_record(systems: Mapping[str, Any] | None) -> tuple[tuple[str, str, str], ...]:
+    """(role, source, sha256) of the systems read from files, for records and cache keys; a
+    file that holds the paper's system itself (e.g. the shipped ``paper-du.fis``) is the
+    paper's and is not recorded."""
+    from ..fuzzy.loop import LoopSystem, system_digest
+    from ..paper import paper_fuzzy_system
+
+    if not systems:
+        return ()
+    return tuple((role, s.source, s.digest) for role, s in sorted(systems.items())
+                 if isinstance(s, LoopSystem)
+                 and s.digest != system_digest(paper_fuzzy_system(role)))
+
+
+def parse_gains_pairs(text: str) -> dict[str, float]:
+    """Parse ``NAME=VALUE,...`` into floats (names lower-cased; each given once).
+
+    Raises
+    ------
+    ParameterError
+        An item without ``=``, a name given twice, or a value that is not a number.
+    """
+    gains: dict[str, float] = {}
+    for item in filter(None, (s.strip() for s in text.split(","))):
+        name, sep, value = item.partition("=")
+        name = name.strip().lower()
+        if not sep or not name.isidentifier():
+            raise ParameterError(f"--gains expects a gains file (.toml) or NAME=VALUE pairs "
+                                 f"(a name is letters, digits and _), got {item!r}")
+        if name in gains:
+            raise ParameterError(f"gain {name} is given twice in --gains; give each once")
+        try:
+            gains[name] = float(value)
+        except ValueError:
+            raise ParameterError(f"gain {name}: {value.strip()!r} is not a number") from None
+    return gains
+
+
+def parse_param(text: str) -> tuple[str, float]:
+    """Split ``group.field=value`` into the name and a finite float.
+
+    Raises
+    ------
+    ParameterError
+        If the text has no ``=`` or the value is not a finite number.
+    """
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    if not sep or not name or not all(part.isidentifier() for part in name.split(".")):
+        raise ParameterError(f"--param expects GROUP.FIELD=VALUE, got {text!r}")
+    try:
+        number = float(value)
+    except ValueError:
+        raise ParameterError(
+            f"--param {name}: value must be a number in SI units, got {value.strip()!r}"
+        ) from None
+    if not math.isfinite(number):
+        raise ParameterError(f"--param {name}: value must be finite, got {value.strip()!r}")
+    return name, number
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise UsageError(f"fuzzyservo simulate: error: {' '.join(message.split())}")
+
+
+def _parser() -> argparse.ArgumentParser:
+    """A reader of the closed-loop run's flags of ``simulate`` (the options as the registry
+    declares them now)."""
+    p = _Parser(prog="fuzzyservo simulate", add_help=False, allow_abbrev=False)
+    p.add_argument("--plant", default="nonlinear")
+    p.add_argument("--controller", required=True)
+    p.add_argument("--gains", default=None)
+    p.add_argument("--reference", default="step:0.1")
+    for name, default in (("--duration", 2.0), ("--ts", 1e-3), ("--start", 0.5),
+                          ("--delay", DEFAULT_DELAY), ("--noise-std", 0.0),
+                          ("--substep", DEFAULT_SUBSTEP)):
+        p.add_argument(name, type=float, default=default)
+    p.add_argument("--seed", type=int, default=0)
+    for o in controller_options():
+        p.add_argument(o.flag, default=None, type=o.type, choices=o.choices or None)
+    p.add_argument("--du-system", default=None)
+    p.add_argument("--alpha-system", default=None)
+    p.add_argument("--no-rule-value", type=float, default=None)
+    p.add_argument("--set", dest="param_set", default=None)
+    p.add_argument("--param", action="append", default=[])
+    return p
