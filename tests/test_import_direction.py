@@ -23,7 +23,7 @@ ALLOWED: dict[str, set[str]] = {
     "registry": {"fuzzy", "formats", "plant", "control", "sim", "paper"},
     # one description of a run (RunSpec), for every front end above
     "run": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry"},
-    "analysis": {"registry", "sim", "control", "plant", "fuzzy", "formats"},
+    "analysis": {"run", "registry", "sim", "control", "plant", "fuzzy", "formats"},
     "files": {"analysis", "registry", "sim", "control", "plant", "fuzzy", "formats"},
     "plots": {"analysis", "sim", "control", "plant", "fuzzy", "formats", "paper"},
     "export": {"registry", "control", "fuzzy", "formats", "plant", "sim", "paper"},

@@ -18,6 +18,7 @@ import pytest
 import fuzzyservo.analysis.autotune as autotune
 import fuzzyservo.commands.linearize as linearize_cmd
 import fuzzyservo.commands.tune as tune_cmd
+import fuzzyservo.run.spec as run_spec
 from fuzzyservo.analysis.autotune import (
     MAX_MAXITER,
     MAX_POPSIZE,
@@ -172,7 +173,7 @@ def test_row10_error_inside_the_search_surfaces_as_itself(
         calls.append(1)
         raise ParameterError("objective refused its input (a test's error)")
 
-    monkeypatch.setattr(autotune, "simulate_batch", failing_batch)
+    monkeypatch.setattr(run_spec, "simulate_batch", failing_batch)  # the tuner's batches
     out = _keep(tmp_path / "g.toml")
     err = _error([*TUNE, "--popsize", "3", "--maxiter", "2", "--duration", "0.5",
                   "--out", str(out)], capsys)

@@ -20,7 +20,7 @@ from fuzzyservo._io import strict_json
 from fuzzyservo.files import read_gains_toml
 from fuzzyservo.paper import PAPER_PIDS, named_set
 from fuzzyservo.plant import with_overrides
-from fuzzyservo.registry import build_controller
+from fuzzyservo.registry import build_controller, build_plant
 from fuzzyservo.sim import simulate
 from fuzzyservo.sim.references import Step
 from fuzzyservo.study.cache import load_study, save_study
@@ -29,7 +29,6 @@ from fuzzyservo.study.paper_study import (
     Design,
     PlantStudy,
     StudyConfig,
-    build_plant,
     design_name,
     run_plant_study,
     study_cases,

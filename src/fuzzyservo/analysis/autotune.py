@@ -44,8 +44,9 @@ from ..control.fuzzy_pi import KernelSystem
 from ..errors import FuzzyServoError, ParameterError
 from ..plant import ServoParams, to_dict
 from ..plant.zoh import check_delay
-from ..registry import ControllerKind, build_plant, controller_kind, plant_kind
-from ..sim import DEFAULT_DELAY, Plant, Step, simulate_batch
+from ..registry import ControllerKind, controller_kind, plant_kind
+from ..run import RunSpec
+from ..sim import DEFAULT_DELAY, Plant, Step, parse_reference
 from ..sim.closed_loop import plant_limits, time_grid
 from ..sim.references import check_reference_samples
 from ..sim.result import BatchResult
@@ -253,6 +254,54 @@ class TuningSetup:
                 f"bounds for {self.controller} must name "
                 f"{default_bounds(self.controller, self.step).names}, got {b.names}")
 
+    @classmethod
+    def for_run(cls, run: RunSpec, *, systems: tuple[tuple[str, str, str], ...] = (),
+                **search: Any) -> TuningSetup:
+        """The tuning of ``run``'s controller on ``run``: its plant, parameter set and
+        overrides, start, duration, sample time and delay; its reference must be a step
+        from t = 0 (``step:A``: the tuning's step). ``systems`` records the fuzzy systems
+        of ``run.systems`` as read, (role, source, SHA-256); ``search`` sets the other
+        fields (objective, constraints, seed, ...). The run's gains are what is tuned.
+
+        Raises
+        ------
+        ParameterError
+            Another reference, controller options or measurement noise (the tuner runs
+            neither), or a field the setup refuses.
+        """
+        ref = parse_reference(run.reference)
+        if not isinstance(ref, Step) or ref.time != 0.0:
+            raise ParameterError(f"the tuner tunes a step response from t = 0: choose the "
+                                 f"reference step:A, not {run.reference!r}")
+        if run.options:
+            raise ParameterError(f"the tuner tunes without controller options: drop "
+                                 f"{', '.join(name for name, _ in run.options)}")
+        if run.noise_std != 0.0:
+            raise ParameterError("the tuner tunes without measurement noise: set the noise "
+                                 "to 0 (a robust tuning takes noise from its sweep spec)")
+        if {r for r, _ in run.systems} != {r for r, _, _ in systems}:
+            raise ParameterError("TuningSetup.for_run: systems must record the run's fuzzy "
+                                 "systems from files, role for role")
+        return cls(controller=run.controller, plant=run.plant, param_set=run.param_set,
+                   overrides=run.overrides, start=run.start, step=float(ref.amplitude),
+                   duration=run.duration, ts=run.ts, delay=run.delay, systems=systems,
+                   **search)
+
+    def run_spec(self, controller: str | None = None,
+                 gains: Mapping[str, float] | None = None) -> RunSpec:
+        """The run each candidate of the tuning is (of ``controller``, default
+        :attr:`controller`; a stage of the paper's steps tunes another kind): a step of
+        :attr:`step` from rest at :attr:`start`, on the nominal plant of a robust tuning;
+        the fuzzy systems by the files they were read from. With ``gains``, the run of those
+        gains: what ``fuzzyservo simulate`` with its ``to_argv()`` makes."""
+        kind = controller_kind(self.controller if controller is None else controller)
+        return RunSpec(controller=kind.name, gains=tuple((gains or {}).items()),
+                       systems=tuple((r, src) for r, src, _ in self.systems
+                                     if r in kind.systems),
+                       plant=self.plant, param_set=self.param_set, overrides=self.overrides,
+                       reference=f"step:{self.step!r}", duration=self.duration, ts=self.ts,
+                       delay=self.delay, start=self.start)
+
     @property
     def kind(self) -> ControllerKind:
         """The registry entry of :attr:`controller`."""
@@ -349,7 +398,8 @@ def full_gains(setup: TuningSetup, searched: FloatArray, kind: ControllerKind | 
 
 
 def _plant(setup: TuningSetup, params: ServoParams) -> Plant:
-    return build_plant(setup.plant, params, setup.start * params.cylinder.stroke)
+    plant: Plant = setup.run_spec().plant_of(params)
+    return plant
 
 
 Evaluator = Callable[[FloatArray], dict[str, FloatArray]]
@@ -361,20 +411,14 @@ TRACE_SAMPLES = 5_000_000
 
 def _evaluator(setup: TuningSetup, kind: ControllerKind, params: ServoParams,
                systems: Mapping[str, KernelSystem] | None) -> Evaluator:
-    plant = _plant(setup, params)
-    ctl = kind.template(dt=setup.ts, systems=systems)
-    ref = Step(setup.step)
-
+    batch = setup.run_spec(kind.name).build_batch(params=params, systems=systems)
     n_samples = time_grid(setup.duration, setup.ts).size
     per_batch = max(1, TRACE_SAMPLES // n_samples)
 
     def evaluate(gains: FloatArray) -> dict[str, FloatArray]:
         rows = full_gains(setup, gains, kind)
-        parts = []
-        for i in range(0, rows.shape[0], per_batch):
-            res = simulate_batch(ctl, rows[i:i + per_batch], plant=plant, reference=ref,
-                                 duration=setup.duration, delay=setup.delay, keep_traces=True)
-            parts.append(_batch_metrics(res))
+        parts = [_batch_metrics(batch.simulate(rows[i:i + per_batch], keep_traces=True))
+                 for i in range(0, rows.shape[0], per_batch)]
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     return evaluate
@@ -394,15 +438,16 @@ def _batch_metrics(res: BatchResult) -> dict[str, FloatArray]:
     return part
 
 
-def _robust_evaluator(setup: TuningSetup, kind: ControllerKind, robust: RobustSet,
-                      systems: Mapping[str, KernelSystem] | None) -> Evaluator:
+def _robust_evaluator(setup: TuningSetup, kind: ControllerKind, params: ServoParams,
+                      robust: RobustSet, systems: Mapping[str, KernelSystem] | None
+                      ) -> Evaluator:
     """Candidates (n, k) -> metrics aggregated over the plants of ``robust``
     (:func:`fuzzyservo.analysis.robust.aggregate`): n x plants closed loops per call, in
     batches of at most :data:`TRACE_SAMPLES` samples of trace."""
     assert setup.robust is not None
     statistic = setup.robust.statistic
-    ctl = kind.template(dt=setup.ts, systems=systems)
-    ref = Step(setup.step)
+    # the template and the step of the run; the plants, delays and noise are the set's
+    batch = setup.run_spec(kind.name).build_batch(params=params, systems=systems)
     m = len(robust)
     n_samples = time_grid(setup.duration, setup.ts).size
     per_batch = max(1, TRACE_SAMPLES // n_samples)
@@ -416,8 +461,7 @@ def _robust_evaluator(setup: TuningSetup, kind: ControllerKind, robust: RobustSe
         for lo in range(0, n_runs, per_batch):
             run = np.arange(lo, min(n_runs, lo + per_batch))
             j = run % m  # candidate-major: run = candidate * m + plant
-            res = simulate_batch(ctl, rows[run // m], plant=[plants[i] for i in j],
-                                 reference=ref, duration=setup.duration,
+            res = batch.simulate(rows[run // m], plant=[plants[i] for i in j],
                                  delay=robust.delays[j],
                                  noise=None if robust.noise is None else robust.noise[j],
                                  keep_traces=True)
@@ -471,7 +515,7 @@ def _evaluator_of(setup: TuningSetup, kind: ControllerKind, params: ServoParams,
                   robust: RobustSet | None) -> Evaluator:
     """The evaluator of ``kind``: on the set ``robust`` if given, else on ``setup``'s plant."""
     if robust is not None:
-        return _robust_evaluator(setup, kind, robust, systems)
+        return _robust_evaluator(setup, kind, params, robust, systems)
     return _evaluator(setup, kind, params, systems)
 
 

@@ -5,7 +5,7 @@ Panel (the ``app`` extra) and are imported by the command, never here.
 """
 
 from .latest import Latest, LatestStats
-from .settings import PHYSICAL, PageRun, PageSettings, Physical, error_line, run_page
+from .settings import PAGE_RUN, PHYSICAL, PageRun, PageSettings, Physical, error_line, run_page
 
-__all__ = ["PHYSICAL", "Latest", "LatestStats", "PageRun", "PageSettings", "Physical",
+__all__ = ["PAGE_RUN", "PHYSICAL", "Latest", "LatestStats", "PageRun", "PageSettings", "Physical",
            "error_line", "run_page"]

@@ -383,8 +383,8 @@ class ServoPage:
 
     def _controller_changed(self, event: Any) -> None:
         self.tuned = None
-        self.settings = replace(self.settings, controller=event.new,
-                                gains=default_gains(event.new, self.w_plant.value))
+        self.settings = self.settings.replace(
+            controller=event.new, gains=default_gains(event.new, self.w_plant.value))
         self._quiet = True
         try:
             for w in self.w_options.values():
@@ -399,8 +399,8 @@ class ServoPage:
     def _plant_changed(self, event: Any) -> None:
         """A new plant starts from that plant's shipped tuned gains."""
         self.tuned = None
-        self.settings = replace(self.settings,
-                                gains=default_gains(self.settings.controller, event.new))
+        self.settings = self.settings.replace(
+            gains=default_gains(self.settings.controller, event.new))
         self._rebuild_gains()
         self.submit()
 
@@ -844,26 +844,22 @@ class ServoPage:
         from ..run import load_systems, systems_record
 
         self.tune_argv()  # the same refusals
-        s = self.settings
-        spec = s.run_spec()
-        ref = _step_of(s.reference)
-        assert ref is not None
+        spec = self.settings.run_spec()
         params = spec.checked_params()
-        systems = load_systems(s.controller, dict(spec.systems), spec.no_rule_value)
+        systems = load_systems(spec.controller, dict(spec.systems), spec.no_rule_value)
         constraints = TuningConstraints.from_limits(
             max_overshoot=10.0 if self.w_max_os.value is None else float(self.w_max_os.value),
             max_sse_percent=0.2, max_u=None)
         stop = StopRule()
-        setup = TuningSetup(
-            controller=s.controller, plant=s.plant, param_set=s.param_set,
-            overrides=tuple(s.overrides), start=s.start, step=ref.amplitude,
-            duration=s.duration, ts=s.ts, delay=spec.checked_delay(params),
+        # the tuner's runs are noise-free, as the command tune_argv shows
+        setup = TuningSetup.for_run(
+            replace(spec, delay=spec.checked_delay(params), noise_std=0.0, seed=0),
+            systems=systems_record(systems),
             objective=str(self.w_objective.value), constraints=constraints, seed=0,
             popsize=_whole(self.w_popsize.value, "--popsize"),
             maxiter=_whole(self.w_maxiter.value, "--maxiter"),
             patience=stop.patience, rtol=stop.rtol, spread=stop.spread,
-            restarts=_whole(self.w_restarts.value, "--restarts"), polish=True,
-            systems=systems_record(systems))
+            restarts=_whole(self.w_restarts.value, "--restarts"), polish=True)
         return setup, params, systems
 
     def start_tuning(self, event: Any = None) -> None:

@@ -30,6 +30,7 @@ from ..run import RunSpec
 
 __all__ = [
     "MAX_PAGE_SAMPLES",
+    "PAGE_RUN",
     "PHYSICAL",
     "PageRun",
     "PageSettings",
@@ -91,95 +92,83 @@ PHYSICAL: tuple[Physical, ...] = (
 MAX_PAGE_SAMPLES = 200_000
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class PageSettings:
-    """Everything that decides the page's run (SI units, as on the command line).
+#: The run the page opens with: the self-tuning fuzzy PI on the linear plant, a 5 s step of
+#: 0.1 m (its gains are the shipped tuned ones, :func:`default_gains`).
+PAGE_RUN = RunSpec(controller="stfpi", plant="linear", duration=5.0)
 
-    Parameters
-    ----------
-    controller : str
-        Registered controller name.
-    gains : tuple of (str, float)
-        The controller's gains in the registry's order and units.
-    plant : str
-        Registered plant name.
-    param_set : str
-        Named parameter set.
-    overrides : tuple of (str, float)
-        ``group.field`` values that differ from the set [SI].
-    delay : float
-        Transport (hose) delay on the command [s].
-    noise_std : float
-        Standard deviation of the measurement noise [m].
-    seed : int
-        Seed of the noise.
-    reference : str
-        Reference spec, offset from the start position (``step:0.1``) [m, s].
-    duration, ts : float
-        Simulated time and controller sample time [s].
-    start : float
-        Start position, fraction of the stroke [-].
-    substep : float
-        Nonlinear plant's RK4 step bound [s].
-    options : tuple of (str, object)
-        Controller options as (keyword, value), as the registry declares them
-        (:func:`~fuzzyservo.registry.controller_options`); only those set.
-    systems : tuple of (str, str)
-        Fuzzy systems read from files as (role, path).
-    no_rule_value : float or None
-        Value of a system from a file where no rule fires.
+
+class PageSettings:
+    """Everything that decides the page's run: a :class:`~fuzzyservo.run.RunSpec` (SI units,
+    as on the command line), held as the command line would write it.
+
+    ``PageSettings(controller="pid", gains=...)`` is :data:`PAGE_RUN` with those fields of
+    the run changed; ``PageSettings(run)`` holds ``run``. The run is kept normalised: the
+    noise seed only with noise, the RK4 step bound only on the nonlinear plant (what the
+    command line then leaves out). The run's fields read as the settings' own
+    (``settings.controller`` is ``settings.run.controller``); the settings are immutable,
+    :meth:`replace` gives changed ones.
     """
 
-    controller: str = "stfpi"
-    gains: tuple[tuple[str, float], ...] = ()
-    plant: str = "linear"
-    param_set: str = "paper"
-    overrides: tuple[tuple[str, float], ...] = ()
-    delay: float = 0.0
-    noise_std: float = 0.0
-    seed: int = 0
-    reference: str = "step:0.1"
-    duration: float = 5.0
-    ts: float = 1e-3
-    start: float = 0.5
-    substep: float = DEFAULT_SUBSTEP
-    options: tuple[tuple[str, Any], ...] = ()
-    systems: tuple[tuple[str, str], ...] = ()
-    no_rule_value: float | None = None
+    __slots__ = ("run",)
+    run: RunSpec
+
+    def __init__(self, run: RunSpec | None = None, /, **fields: Any) -> None:
+        spec = replace(PAGE_RUN if run is None else run, **fields)
+        if spec.noise_std == 0.0 and spec.seed != 0:
+            spec = replace(spec, seed=0)
+        if spec.plant != "nonlinear" and spec.substep != DEFAULT_SUBSTEP:
+            spec = replace(spec, substep=DEFAULT_SUBSTEP)
+        object.__setattr__(self, "run", spec)
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_") or name == "run":  # (copying, pickling: not a run field)
+            raise AttributeError(name)
+        if name in RunSpec.__dataclass_fields__:
+            return getattr(self.run, name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"PageSettings are immutable: use .replace({name}=...)")
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, PageSettings) and other.run == self.run
+
+    def __hash__(self) -> int:
+        return hash(self.run)
+
+    def __repr__(self) -> str:
+        return f"PageSettings({self.run!r})"
+
+    def replace(self, **changes: Any) -> PageSettings:
+        """These settings with ``changes`` to fields of the run."""
+        return PageSettings(self.run, **changes)
 
     def run_spec(self) -> RunSpec:
-        """The run these settings describe (the noise seed only with noise, the RK4 step
-        bound only on the nonlinear plant: what the command line then leaves out)."""
-        return RunSpec(controller=self.controller, gains=self.gains, options=self.options,
-                       systems=self.systems, no_rule_value=self.no_rule_value,
-                       plant=self.plant, param_set=self.param_set, overrides=self.overrides,
-                       reference=self.reference, duration=self.duration, ts=self.ts,
-                       delay=self.delay, noise_std=self.noise_std,
-                       seed=self.seed if self.noise_std != 0.0 else 0, start=self.start,
-                       substep=self.substep if self.plant == "nonlinear" else DEFAULT_SUBSTEP)
+        """The run these settings describe."""
+        return self.run
 
     def argv(self) -> list[str]:
         """The arguments of ``fuzzyservo simulate`` that make this run (no output option):
         :meth:`RunSpec.to_argv <fuzzyservo.run.RunSpec.to_argv>`."""
-        return self.run_spec().to_argv()
+        return self.run.to_argv()
 
     def command(self) -> str:
         """The ``fuzzyservo simulate`` command that reproduces the run and prints its step
         metrics (what the page shows beside the plots)."""
-        return self.run_spec().command()
+        return self.run.command()
 
     def gain_map(self) -> dict[str, float]:
         """The gains as a mapping."""
-        return dict(self.gains)
+        return dict(self.run.gains)
 
     def with_gain(self, name: str, value: float) -> PageSettings:
         """These settings with gain ``name`` set to ``value``."""
-        return replace(self, gains=tuple((k, value if k == name else v)
-                                         for k, v in self.gains))
+        return self.replace(gains=tuple((k, value if k == name else v)
+                                        for k, v in self.run.gains))
 
     def option_flags(self) -> list[str]:
         """The command-line flags of the options set."""
-        return [option(name).flag for name, _ in self.options]
+        return [option(name).flag for name, _ in self.run.options]
 
 
 def option(name: str) -> OptionSpec:

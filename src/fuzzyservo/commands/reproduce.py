@@ -77,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
     record = systems_record(systems)
     from_files = tuple((role, systems[role]) for role, _, _ in record) if systems else ()
     cfg = StudyConfig(params=params, set_name=set_name(args), duration=args.duration,
-                      systems=from_files)
+                      systems=from_files,
+                      no_rule_value=getattr(args, "no_rule_value", None) if from_files else None)
     plants = PLANTS if args.plant == "both" else (args.plant,)
     if args.c8_samples is not None and not 0 <= args.c8_samples <= 100_000:
         raise ParameterError(f"--c8-samples must be an integer in [0, 100000], got "

@@ -61,6 +61,7 @@ from ..errors import ParameterError
 from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gains_toml
 from ..plant import ServoParams
 from ..registry import controller_names
+from ..run import RunSpec
 from . import HELP
 from ._plantargs import (
     add_plant_arguments,
@@ -172,20 +173,23 @@ def _given(args: argparse.Namespace, name: str) -> Any:
 
 def _setup(args: argparse.Namespace, params: ServoParams,
            systems: dict[str, Any] | None = None) -> TuningSetup:
+    """The tuning the options describe: the run of each candidate (a :class:`RunSpec`) and
+    how to search."""
     constraints = TuningConstraints.from_limits(max_overshoot=args.max_overshoot,
                                                 max_sse_percent=args.max_sse,
                                                 max_u=args.max_u)
     overrides = tuple(overrides_from_args(args).items()) if args.robust is None else ()
-    return TuningSetup(
-        controller=args.controller, plant=_given(args, "plant"), param_set=set_name(args),
-        overrides=overrides, start=_given(args, "start"), step=_given(args, "step"),
-        duration=_given(args, "duration"), ts=_given(args, "ts"),
-        delay=delay_from_args(args.delay, params),
-        objective=args.objective,
-        constraints=constraints,
+    record = systems_record(systems)
+    run = RunSpec(controller=args.controller, plant=_given(args, "plant"),
+                  param_set=set_name(args), overrides=overrides, start=_given(args, "start"),
+                  reference=f"step:{float(_given(args, 'step'))!r}",
+                  duration=_given(args, "duration"), ts=_given(args, "ts"),
+                  delay=delay_from_args(args.delay, params),
+                  systems=tuple((role, source) for role, source, _ in record))
+    return TuningSetup.for_run(
+        run, systems=record, objective=args.objective, constraints=constraints,
         seed=args.seed, popsize=args.popsize, maxiter=args.maxiter, patience=args.patience,
-        rtol=args.rtol, spread=args.spread, restarts=args.restarts, polish=args.polish,
-        systems=systems_record(systems))
+        rtol=args.rtol, spread=args.spread, restarts=args.restarts, polish=args.polish)
 
 
 class _Progress:

@@ -8,11 +8,14 @@ from __future__ import annotations
 
 from .spec import (
     DEFAULT_SET,
+    BatchRun,
     BuiltRun,
     ControllerParts,
     RunSpec,
     check_start,
+    flat_params,
     load_systems,
+    overrides_of,
     parse_delay,
     parse_gains_pairs,
     parse_param,
@@ -22,11 +25,14 @@ from .spec import (
 
 __all__ = [
     "DEFAULT_SET",
+    "BatchRun",
     "BuiltRun",
     "RunSpec",
     "check_start",
+    "flat_params",
     "ControllerParts",
     "load_systems",
+    "overrides_of",
     "parse_delay",
     "parse_gains_pairs",
     "parse_param",

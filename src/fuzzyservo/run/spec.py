@@ -29,10 +29,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from .._typing import FloatArray
 from ..errors import ParameterError, UsageError
 from ..paper.published import named_set
-from ..plant import ServoParams, with_overrides
+from ..plant import ServoParams, to_dict, with_overrides
 from ..registry import (
     DEFAULT_SUBSTEP,
     build_plant,
@@ -41,15 +43,18 @@ from ..registry import (
     controller_options,
     default_systems,
 )
-from ..sim import DEFAULT_DELAY, parse_reference, simulate
+from ..sim import DEFAULT_DELAY, parse_reference, simulate, simulate_batch
 
 __all__ = [
     "DEFAULT_SET",
+    "BatchRun",
     "BuiltRun",
     "RunSpec",
     "check_start",
     "ControllerParts",
+    "flat_params",
     "load_systems",
+    "overrides_of",
     "parse_delay",
     "parse_gains_pairs",
     "parse_param",
@@ -270,30 +275,76 @@ class RunSpec:
         """The delay [s], checked as ``--delay`` checks it."""
         return parse_delay(_num(self.delay), params)
 
-    def build_controller(self) -> ControllerParts:
+    def build_controller(self, *, systems: Mapping[str, Any] | None = None
+                         ) -> ControllerParts:
         """The controller and what it was built from: sample time, gains, options and fuzzy
         systems checked in that order (what ``export`` takes as well).
+
+        ``systems`` (role -> packed system) are the fuzzy systems when the caller holds them
+        already (the study and the tuner read each file once for many runs): they replace
+        reading :attr:`systems`; a role the kind needs and ``systems`` lacks is refused.
 
         Raises
         ------
         ParameterError, InputError, FormatError
             A bad sample time, gains, an option the kind does not take, an unreadable system.
         """
-        ts = self.ts
-        if not (isinstance(ts, float | int) and math.isfinite(ts) and ts > 0.0):
-            raise ParameterError(f"--ts must be finite and > 0 s, got {ts!r}")
+        ts = self._checked_ts()
         kind = controller_kind(self.controller)
         gains = kind.check_gains(dict(self.gains))
         options = self.option_map()
-        systems = load_systems(self.controller, dict(self.systems), self.no_rule_value)
-        controller = kind.build(gains, dt=float(ts), options=options, systems=systems)
+        fuzzy = self._fuzzy(systems)
+        controller = kind.build(gains, dt=ts, options=options, systems=fuzzy)
         return ControllerParts(controller=controller, gains=gains, options=options,
-                               systems=systems)
+                               systems=fuzzy)
 
-    def build(self) -> BuiltRun:
+    def _checked_ts(self) -> float:
+        """The sample time [s], checked as ``--ts`` checks it."""
+        ts = self.ts
+        if not (isinstance(ts, float | int) and math.isfinite(ts) and ts > 0.0):
+            raise ParameterError(f"--ts must be finite and > 0 s, got {ts!r}")
+        return float(ts)
+
+    def _fuzzy(self, systems: Mapping[str, Any] | None) -> dict[str, Any] | None:
+        """The fuzzy systems by role: ``systems``' roles of the kind, else those of
+        :attr:`systems` read from their files (None: the paper's)."""
+        if systems is None:
+            return load_systems(self.controller, dict(self.systems), self.no_rule_value)
+        needs = controller_kind(self.controller).systems
+        return {r: systems[r] for r in needs if r in systems} or None
+
+    def _resolved_params(self, params: ServoParams | None) -> ServoParams:
+        """The servo parameters: :meth:`checked_params`, or ``params`` when the caller holds
+        them already, refused unless they are the set with the overrides, value for value."""
+        if params is None:
+            return self.checked_params()
+        named = self.checked_params()
+        if params is not named and repr(params) != repr(named):
+            mine, theirs = flat_params(named), flat_params(params)
+            diff = next(k for k in mine if repr(mine[k]) != repr(theirs[k]))
+            raise ParameterError(
+                f"the servo parameters given are not the run's set {self.param_set!r} with "
+                f"its overrides: {diff} is {theirs[diff]!r}, the run says {mine[diff]!r} "
+                f"(add it to the overrides)")
+        return params
+
+    def _check_run(self) -> None:
+        """The run's own settings, in the command line's order: substep (first), and after
+        the controller and parameters the delay, start, reference and seed."""
+        if not (math.isfinite(self.substep) and self.substep > 0.0):
+            raise ParameterError(f"--substep must be finite and > 0 s, got {self.substep!r}")
+
+    def build(self, *, params: ServoParams | None = None,
+              systems: Mapping[str, Any] | None = None) -> BuiltRun:
         """Check the run and make what runs it, in the command line's order and with its
         messages: substep, sample time, gains, options, fuzzy systems, controller,
         parameters, delay, start, reference, seed, plant.
+
+        ``params`` and ``systems`` are the servo parameters and the fuzzy systems (role ->
+        packed system) when the caller holds them already (a parameter file read once, the
+        study's and the tuner's many runs): ``params`` must be the set with the overrides
+        (else :class:`ParameterError` names the first value that differs), ``systems``
+        replace reading the files of :attr:`systems`.
 
         Raises
         ------
@@ -301,20 +352,51 @@ class RunSpec:
             Whatever ``fuzzyservo simulate`` would reject for this run (one line, as it
             prints it).
         """
-        if not (math.isfinite(self.substep) and self.substep > 0.0):
-            raise ParameterError(f"--substep must be finite and > 0 s, got {self.substep!r}")
-        ctl = self.build_controller()
-        params = self.checked_params()
-        self.checked_delay(params)
+        self._check_run()
+        ctl = self.build_controller(systems=systems)
+        resolved, plant, reference = self._loop(params)
+        return BuiltRun(spec=self, controller=ctl.controller, plant=plant, params=resolved,
+                        reference=reference, gains=ctl.gains, options=ctl.options,
+                        systems=ctl.systems)
+
+    def _loop(self, params: ServoParams | None) -> tuple[ServoParams, Any, Any]:
+        """The parameters, plant and reference, checked after the controller."""
+        resolved = self._resolved_params(params)
+        self.checked_delay(resolved)
         check_start(self.start)
         reference = parse_reference(self.reference)
         if self.seed < 0:
             raise ParameterError(f"--seed must be a non-negative integer, got {self.seed}")
-        plant = build_plant(self.plant, params, self.start * params.cylinder.stroke,
-                            substep=self.substep)
-        return BuiltRun(spec=self, controller=ctl.controller, plant=plant, params=params,
-                        reference=reference, gains=ctl.gains, options=ctl.options,
-                        systems=ctl.systems)
+        return resolved, self.plant_of(resolved), reference
+
+    def plant_of(self, params: ServoParams) -> Any:
+        """The run's plant (kind, start position, RK4 step bound) with ``params``: the plant
+        of this run on changed parameters (the study's changed plants, a robust set)."""
+        return build_plant(self.plant, params, self.start * params.cylinder.stroke,
+                           substep=self.substep)
+
+    def build_batch(self, *, params: ServoParams | None = None,
+                    systems: Mapping[str, Any] | None = None) -> BatchRun:
+        """Check the run as :meth:`build` does, but for many runs that differ in gains (and
+        plant, delay or noise): a template controller whose gains each row replaces, with
+        the run's sample time, options and fuzzy systems. :attr:`gains` may be left out
+        (they are the rows'); given, they are checked.
+
+        Raises
+        ------
+        ParameterError, InputError, FormatError
+            As :meth:`build`.
+        """
+        self._check_run()
+        ts = self._checked_ts()
+        kind = controller_kind(self.controller)
+        if self.gains:
+            kind.check_gains(dict(self.gains))
+        template = kind.template(dt=ts, systems=self._fuzzy(systems),
+                                 options=self.option_map())
+        resolved, plant, reference = self._loop(params)
+        return BatchRun(spec=self, template=template, plant=plant, params=resolved,
+                        reference=reference)
 
     def run(self) -> Any:
         """Build and simulate the run (:meth:`BuiltRun.simulate`)."""
@@ -364,6 +446,42 @@ class BuiltRun:
                         delay=s.delay, noise_std=s.noise_std, rng=self.rng())
 
 
+@dataclass(frozen=True, slots=True)
+class BatchRun:
+    """The objects of a :class:`RunSpec` for many runs at once
+    (:func:`fuzzyservo.sim.simulate_batch`): one row of gains per run, and per run
+    optionally its own plant, delay and noise."""
+
+    spec: RunSpec  #: the run they make (its gains, if any, are not used)
+    template: Any  #: controller whose gains each row replaces (sample time, options, systems)
+    plant: Any  #: the run's plant
+    params: ServoParams  #: the servo parameters
+    reference: Any  #: the reference (offset from the start position) [m]
+
+    def row(self, gains: Mapping[str, float]) -> FloatArray:
+        """One batch row: ``gains`` (checked, defaults filled) in the class's columns."""
+        kind = controller_kind(self.spec.controller)
+        return kind.class_row(kind.check_gains(dict(gains)))
+
+    def simulate(self, rows: ArrayLike, *, plant: Any = None, delay: Any = None,
+                 noise: Any = None, keep_traces: bool = False) -> Any:
+        """The runs of ``rows`` (runs, gains of the class) on the run's plant, or
+        ``plant`` (one, or one per run), with the run's delay or ``delay`` (one per run)
+        [s] and measurement ``noise`` (runs, samples) [m], else the run's noise
+        (:class:`fuzzyservo.sim.BatchResult`)."""
+        s = self.spec
+        extra: dict[str, Any] = {}
+        if noise is not None:
+            extra["noise"] = noise
+        elif s.noise_std != 0.0:
+            extra.update(noise_std=s.noise_std, rng=np.random.default_rng(s.seed))
+        return simulate_batch(self.template, rows,
+                              plant=self.plant if plant is None else plant,
+                              reference=self.reference, duration=s.duration,
+                              delay=s.delay if delay is None else delay,
+                              keep_traces=keep_traces, **extra)
+
+
 def _offered(name: str) -> Any:
     """The declaration of the offered option ``name`` (of any registered kind)."""
     for o in controller_options():
@@ -407,6 +525,21 @@ def check_start(start: float) -> None:
     if not 0.0 < start < 1.0:
         raise ParameterError(f"--start must be a fraction of the stroke in (0, 1), "
                              f"got {start!r}")
+
+
+def flat_params(params: ServoParams) -> dict[str, float]:
+    """Every parameter as ``{"group.field": value}`` [SI]."""
+    return {f"{g}.{k}": v for g, d in to_dict(params).items() for k, v in d.items()}
+
+
+def overrides_of(params: ServoParams, param_set: str) -> tuple[tuple[str, float], ...]:
+    """The overrides of the named set that make ``params``: every ``group.field`` whose
+    value differs from the set's, in the parameters' order (whatever set them: a
+    ``--params`` file, ``--param``, or code), so that ``RunSpec(param_set=...,
+    overrides=...)`` describes them exactly."""
+    base = flat_params(named_set(param_set))
+    return tuple((name, v) for name, v in flat_params(params).items()
+                 if repr(v) != repr(base[name]))
 
 
 def servo_params(param_set: str, overrides: Sequence[tuple[str, float]] | Mapping[str, float]

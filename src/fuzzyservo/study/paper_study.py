@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -31,12 +31,9 @@ from .._typing import FloatArray
 from ..errors import ParameterError
 from ..paper import PAPER_PIDS
 from ..plant import ServoParams, with_overrides
-from ..registry import build_controller as registry_build_controller
-from ..registry import build_plant as registry_build_plant
 from ..registry import controller_kind, plant_kind
-from ..sim import DEFAULT_DELAY, Plant, SimResult, simulate
-from ..sim.batch import simulate_batch
-from ..sim.references import Step
+from ..run import RunSpec, overrides_of
+from ..sim import DEFAULT_DELAY, SimResult
 from .claims import (
     Claim,
     Trace,
@@ -50,10 +47,8 @@ __all__ = [
     "ControllerCase",
     "PlantStudy",
     "StudyConfig",
-    "build_controller",
     "TUNED_AS",
     "TUNED_DESIGNS",
-    "build_plant",
     "design_name",
     "run_plant_study",
     "study_cases",
@@ -117,6 +112,10 @@ class StudyConfig:
         Fuzzy systems from files by role (``du``, ``alpha``) in place of the paper's Fig. 3
         for every fuzzy controller of the study (``reproduce --du-system``); empty: the
         paper's.
+    no_rule_value : float or None
+        The value those systems were read with where no rule fires (``reproduce
+        --no-rule-value``; recorded in each run's :class:`~fuzzyservo.run.RunSpec`); None:
+        each file's own.
     """
 
     params: ServoParams
@@ -131,6 +130,7 @@ class StudyConfig:
                                       1.0)
     pid_filter: float = 100.0
     systems: tuple[tuple[str, Any], ...] = ()
+    no_rule_value: float | None = None
 
     def __post_init__(self) -> None:
         for role, _ in self.systems:
@@ -156,6 +156,22 @@ class StudyConfig:
         given = dict(self.systems)
         return {**default_systems(tuple(r for r in ("du", "alpha") if r not in given)),
                 **given}
+
+    def run_spec(self, plant: str, case: ControllerCase, *,
+                 params: ServoParams | None = None) -> RunSpec:
+        """The run of ``case`` on ``plant`` (on ``params``, default :attr:`params`): a step
+        of :attr:`step` from rest at mid-stroke, :attr:`duration`, :attr:`ts` and
+        :attr:`delay`; the parameters as the set with the overrides that make them, the
+        fuzzy systems by their files. ``fuzzyservo simulate`` with its
+        :meth:`~fuzzyservo.run.RunSpec.to_argv` makes the same run."""
+        p = self.params if params is None else params
+        return RunSpec(controller=case.kind, gains=tuple(case.gains.items()),
+                       systems=tuple((role, s.source) for role, s in self.systems),
+                       no_rule_value=self.no_rule_value if self.systems else None,
+                       plant=plant, param_set=self.set_name,
+                       overrides=overrides_of(p, self.set_name),
+                       reference=f"step:{self.step!r}", duration=self.duration, ts=self.ts,
+                       delay=self.delay, start=0.5)
 
     @property
     def fig8_delay(self) -> float:
@@ -220,20 +236,6 @@ def design_name(case: ControllerCase) -> str:
         return TUNED_AS[case.key]
     zero = [g for g in ("ki", "kd") if case.gains.get(g, 0.0) == 0.0]
     return f"{structure} ({TUNED_AS[case.key]} with {' = '.join(zero)} = 0)"
-
-
-def build_controller(case: ControllerCase, ts: float,
-                     systems: Mapping[str, Any] | None = None) -> Any:
-    """The controller object of a case at sample time ``ts`` [s], from the registry (fuzzy
-    systems by role: ``systems``, default the paper's)."""
-    kind = controller_kind(case.kind)
-    use = None if systems is None else {r: systems[r] for r in kind.systems}
-    return registry_build_controller(case.kind, case.gains, dt=ts, systems=use)
-
-
-def build_plant(kind: str, params: ServoParams) -> Plant:
-    """The registered plant ``kind`` at rest at mid-stroke."""
-    return registry_build_plant(kind, params)
 
 
 def variants(kind: str, params: ServoParams) -> dict[str, ServoParams]:
@@ -316,21 +318,19 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
     # C3's window: ten time constants of the slowest derivative filter of the paper's PIDs
     after = max(transient_window(float(c.gains.get("n", math.inf)), cfg.ts)
                 for c in cases if c.key in paper_keys)
-    plant = build_plant(kind, cfg.params)
-    ref = Step(cfg.step)
+    systems = cfg.system_map()
+    specs = {case.key: cfg.run_spec(kind, case) for case in cases}
     runs: dict[str, SimResult] = {}
     metrics: dict[str, dict[str, float]] = {}
     for case in cases:
-        ctl = build_controller(case, cfg.ts, cfg.system_map())
-        runs[case.key] = simulate(ctl, plant, ref, duration=cfg.duration, delay=cfg.delay)
+        runs[case.key] = specs[case.key].build(params=cfg.params, systems=systems).simulate()
         metrics[case.key] = metrics_dict(runs[case.key], cfg.step)
         metrics[case.key].update(command_amplitude(runs[case.key].t, runs[case.key].u,
                                                    after=after))
     done(f"{kind}: nominal runs")
 
-    st_case = next(c for c in cases if c.key == "stfpi")
-    delayed = simulate(build_controller(st_case, cfg.ts, cfg.system_map()), plant, ref,
-                       duration=cfg.duration, delay=cfg.fig8_delay)
+    st_spec = replace(specs["stfpi"], delay=cfg.fig8_delay)
+    delayed = st_spec.build(params=cfg.params, systems=systems).simulate()
     delayed_metrics = metrics_dict(delayed, cfg.step)
     delayed_metrics.update(command_amplitude(delayed.t, delayed.u, after=after))
 
@@ -338,10 +338,11 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
     sweep: dict[str, dict[str, FloatArray]] = {}
     margins: dict[str, float] = {}
     failures: dict[str, list[float]] = {}
+    batches = {case.key: specs[case.key].build_batch(params=cfg.params, systems=systems)
+               for case in cases}
     for case in cases:
-        ctl = build_controller(case, cfg.ts, cfg.system_map())
-        b = simulate_batch(ctl, np.tile(_gain_row(case), (delays.size, 1)),
-                           plant=plant, reference=ref, duration=cfg.duration, delay=delays)
+        batch = batches[case.key]
+        b = batch.simulate(np.tile(batch.row(case.gains), (delays.size, 1)), delay=delays)
         sweep[case.key] = {n: b.metric(n).copy() for n in ("overshoot", "settling_time",
                                                            "iae", "u_max")}
         sweep[case.key]["diverged"] = b.diverged.astype(np.float64)
@@ -354,22 +355,23 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
 
     var_params = dict(variants(kind, cfg.params) if changed_plants is None
                       else changed_plants)
-    var_plants = [build_plant(kind, p) for p in var_params.values()]
+    # each changed plant is the run's plant on its parameters (a RunSpec of its own below)
+    var_plants = [specs["stfpi"].plant_of(p) for p in var_params.values()]
     var_metrics: dict[str, dict[str, dict[str, float]]] = {v: {} for v in var_params}
     var_runs: dict[str, SimResult] = {}
     for case in (cases if var_plants else ()):
-        ctl = build_controller(case, cfg.ts, cfg.system_map())
-        b = simulate_batch(ctl, np.tile(_gain_row(case), (len(var_plants), 1)),
-                           plant=var_plants, reference=ref, duration=cfg.duration,
-                           delay=cfg.delay)
+        batch = batches[case.key]
+        b = batch.simulate(np.tile(batch.row(case.gains), (len(var_plants), 1)),
+                           plant=var_plants)
         for i, name in enumerate(var_params):
             var_metrics[name][case.key] = _batch_metrics(b.metric_names, b.metrics[i],
                                                          cfg.step, bool(b.diverged[i]))
-    for name, p in zip(var_params, var_plants, strict=True):
+    st_case = next(c for c in cases if c.key == "stfpi")
+    for name, p in var_params.items():
         if var_metrics[name]["stfpi"]["diverged"]:
             continue  # no trace to keep; the claim reads the batch's divergence flag
-        var_runs[name] = simulate(build_controller(st_case, cfg.ts, cfg.system_map()), p, ref,
-                                  duration=cfg.duration, delay=cfg.delay)
+        var_runs[name] = cfg.run_spec(kind, st_case, params=p).build(
+            params=p, systems=systems).simulate()
     done(f"{kind}: changed plants")
 
     labels = {c.key: c.label for c in cases}
@@ -388,9 +390,3 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
                       sweep=sweep, delay_margins=margins, delay_failures=failures,
                       variant_metrics=var_metrics,
                       variant_runs=var_runs, claims=claims)
-
-
-def _gain_row(case: ControllerCase) -> FloatArray:
-    """The case's gains as one batch row of its controller class (registry)."""
-    return controller_kind(case.kind).class_row(case.gains)
-

@@ -51,9 +51,10 @@ from ..errors import InputError
 from ..files import read_gains_toml, write_gains_toml
 from ..files.html import Section, write_html
 from ..paper import alpha_system, du_system, named_set
-from ..plant import ServoParams, to_dict
+from ..plant import to_dict
 from ..plots.figures import fig3, fig3_files
 from ..registry import controller_kind
+from ..run import flat_params, overrides_of
 from .cache import CacheEntryError, load_study, save_study
 from .claims import NO_OVERSHOOT_PCT
 from .figures import figure_files
@@ -62,7 +63,7 @@ from .paper_study import TUNED_DESIGNS, PlantStudy, StudyConfig, run_plant_study
 from .reuse import Digests, reusable
 
 __all__ = ["GAIN_FILES", "MANIFEST", "PLANTS", "CacheWarning", "default_gains_dir",
-           "folder_status", "load_tuned", "overrides_in_force", "reproduce", "retune",
+           "folder_status", "load_tuned", "reproduce", "retune",
            "study_jobs"]
 
 #: The output folder's manifest, written last.
@@ -101,7 +102,9 @@ def _gain_paths(plant: str, gains_dir: Path) -> list[Path]:
 
 
 def study_jobs(plant: str, set_name: str,
-               systems: tuple[tuple[str, str, str], ...] = ()) -> list[tuple[str, TuningSetup]]:
+               systems: tuple[tuple[str, str, str], ...] = (), *,
+               overrides: tuple[tuple[str, float], ...] = ()
+               ) -> list[tuple[str, TuningSetup]]:
     """The tunings behind the study's gain files of ``plant``: (file name, setup).
 
     PIDs (1-DOF, 2-DOF) and one self-tuning fuzzy PI are tuned like the paper's PID (ITAE,
@@ -109,17 +112,18 @@ def study_jobs(plant: str, set_name: str,
     tuned for the behaviour the paper reports for it (no overshoot, read as
     <= NO_OVERSHOOT_PCT %), by the paper's steps 1-3 (step 1 gives the fuzzy PI's file).
     Default tuner settings (converged searches), seed 0. ``systems`` records fuzzy systems
-    from files, (role, source, sha256), for the fuzzy designs.
+    from files, (role, source, sha256), for the fuzzy designs; ``overrides`` the
+    parameters that differ from the set (recorded in each gains file).
     """
     no_os = TuningConstraints(max_overshoot=NO_OVERSHOOT_PCT)
-    return [
-        ("pid", TuningSetup(controller="pid", plant=plant, param_set=set_name)),
-        ("pid2", TuningSetup(controller="pid2", plant=plant, param_set=set_name)),
-        ("stfpi", TuningSetup(controller="stfpi", plant=plant, param_set=set_name,
-                              systems=systems)),
-        ("stfpi-os0", TuningSetup(controller="stfpi", plant=plant, param_set=set_name,
-                                  constraints=no_os, systems=systems)),
-    ]
+
+    def job(controller: str, **kw: Any) -> TuningSetup:
+        return TuningSetup(controller=controller, plant=plant, param_set=set_name,
+                           overrides=overrides, **kw)
+
+    return [("pid", job("pid")), ("pid2", job("pid2")),
+            ("stfpi", job("stfpi", systems=systems)),
+            ("stfpi-os0", job("stfpi", constraints=no_os, systems=systems))]
 
 
 def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
@@ -138,7 +142,8 @@ def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
         given = dict(systems)
         full = {**default_systems(tuple(r for r in ("du", "alpha") if r not in given)),
                 **given}
-    for name, setup in study_jobs(plant, set_name, record):
+    jobs = study_jobs(plant, set_name, record, overrides=overrides_of(params, set_name))
+    for name, setup in jobs:
         kind = controller_kind(setup.controller)
         use = None if full is None or not kind.systems else {r: full[r] for r in kind.systems}
         tuned = tune_controller(setup, params, systems=use)
@@ -193,9 +198,10 @@ def _matplotlib_version() -> str:
 
 def _settings(cfg: StudyConfig) -> dict[str, Any]:
     out = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)
-           if f.name not in ("params", "systems")}
+           if f.name not in ("params", "systems", "no_rule_value")}
     if cfg.systems:  # a system by its values' digest (absent: the paper's, as before)
         out["systems"] = {role: s.digest for role, s in cfg.systems}
+        out["no_rule_value"] = cfg.no_rule_value
     return out
 
 
@@ -205,18 +211,6 @@ def _cache_key(plant: str, cfg: StudyConfig, gains: Mapping[str, str], version: 
         "params": to_dict(cfg.params), "config": _settings(cfg), "gains": gains,
     }, sort_keys=True, default=repr)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
-
-
-def overrides_in_force(params: ServoParams, set_name: str) -> dict[str, float]:
-    """Every parameter of ``params`` that differs from the named set, ``{"group.field": v}``
-    (whatever set it: ``--params`` file, ``--param``, or code)."""
-    base = _flat(named_set(set_name))
-    return {name: v for name, v in _flat(params).items() if v != base[name]}
-
-
-def _flat(params: ServoParams) -> dict[str, float]:
-    """Every parameter as ``{"group.field": value}`` [SI]."""
-    return {f"{g}.{k}": v for g, d in to_dict(params).items() for k, v in d.items()}
 
 
 def _notes(plant: str, tuned: Mapping[str, TunedGains]) -> dict[str, str]:
@@ -429,12 +423,12 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
             save_study(path, study, key=key, version=version)
         studies.append(study)
 
-    overrides = overrides_in_force(cfg.params, cfg.set_name)
+    overrides = dict(overrides_of(cfg.params, cfg.set_name))
     shown = dict(meta or {})
     shown["parameter set"] = cfg.set_name + (
         " with " + ", ".join(f"{k} = {v!r}" for k, v in overrides.items())
         if overrides else " (no override)")
-    base = _flat(named_set(cfg.set_name))
+    base = flat_params(named_set(cfg.set_name))
     notices = [f"Parameter set '{cfg.set_name}'" + (
         ", with these overrides in force (SI units): "
         + "; ".join(f"{k} = {v!r} (the set has {base[k]!r})" for k, v in overrides.items())
