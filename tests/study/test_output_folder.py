@@ -196,7 +196,7 @@ def _kill_reproduce(sig: int, n: int, seed: int, tmp_path: Path) -> list[tuple[i
         time.sleep(rng.uniform(0.0, 1.0) * write_time)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=300)
-        assert "Traceback" not in err
+        assert "Traceback" not in err, err
         seen.append((proc.returncode, _check_folder(out)))
     res = subprocess.run([sys.executable, "-m", "fuzzyservo", *configs[1]],
                          capture_output=True, text=True, check=False)
