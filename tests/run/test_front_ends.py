@@ -4,19 +4,23 @@ the run does not describe is refused."""
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import pickle
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fuzzyservo.analysis.autotune import TuningSetup, tune_controller
+from fuzzyservo.analysis.autotune import TuningSetup, make_evaluator, tune_controller
 from fuzzyservo.analysis.tuning import TuningConstraints
 from fuzzyservo.app.settings import PAGE_RUN, PageSettings
+from fuzzyservo.cli import main
 from fuzzyservo.errors import ParameterError
 from fuzzyservo.paper import named_set
 from fuzzyservo.plant import with_overrides
-from fuzzyservo.run import RunSpec, overrides_of
+from fuzzyservo.run import RunSpec, load_systems, overrides_of, systems_record
 from fuzzyservo.study.paper_study import StudyConfig, run_plant_study
 from fuzzyservo.study.runner import default_gains_dir, load_tuned, study_jobs
 
@@ -145,3 +149,56 @@ def test_page_settings_hold_a_run_spec() -> None:
         s.controller = "pi"  # type: ignore[misc]
     with pytest.raises(AttributeError, match="no attribute 'colour'"):
         s.colour  # noqa: B018
+
+
+SYSTEMS = Path(__file__).resolve().parents[2] / "src" / "fuzzyservo" / "data" / "systems"
+
+
+def test_a_tuning_with_the_papers_own_system_file_is_the_papers() -> None:
+    """A file holding the paper's system is the paper's: not recorded, and the tuning of a
+    run that names it is taken (the page's tuner refused it for a while)."""
+    run = RunSpec(controller="stfpi", plant="linear", duration=10.0,
+                  systems=(("du", str(SYSTEMS / "paper-du.fis")),))
+    systems = load_systems("stfpi", dict(run.systems))
+    assert systems_record(systems) == ()
+    assert TuningSetup.for_run(run, systems=systems_record(systems)) == TuningSetup(
+        controller="stfpi")
+    with pytest.raises(ParameterError, match="systems must record fuzzy systems of the run"):
+        TuningSetup.for_run(run, systems=(("alpha", "other.fis", "0" * 64),))
+    with pytest.raises(ParameterError, match="default RK4 step bound"):
+        TuningSetup.for_run(dataclasses.replace(run, plant="nonlinear", substep=1e-4))
+
+
+@pytest.mark.parametrize("value", ["nan", "inf"])
+def test_tune_names_a_step_that_is_not_a_number(value: str, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "g.toml"
+    assert main(["tune", "--controller", "pid", "--step", value, "--out", str(out)]) == 2
+    assert not out.exists()
+    assert capsys.readouterr().err.strip() == (
+        f"fuzzyservo: error: TuningSetup.step must be finite and > 0, got {float(value)!r}")
+
+
+def test_equal_parameters_in_another_type_are_the_runs() -> None:
+    """An int where the set has the same double is the same parameter; no field differing
+    is not an error."""
+    as_int = dataclasses.replace(PAPER, load=dataclasses.replace(PAPER.load, mass=900))
+    spec = RunSpec(controller="p", gains=(("kp", 1.0),), plant="linear",
+                   overrides=(("load.mass", 900.0),))
+    assert spec.build(params=as_int).params is as_int
+
+
+def test_the_tuner_without_systems_runs_the_papers() -> None:
+    """systems=None is the paper's, whatever files the setup records (the caller passes what
+    it read; the record is by digest)."""
+    ghost = TuningSetup(controller="fpi", duration=1.0, popsize=2, maxiter=1, restarts=1,
+                        polish=False, systems=(("du", "/nonexistent/du.fis", "0" * 64),))
+    paper = dataclasses.replace(ghost, systems=())
+    rows = np.array([[10.0, 5e3, 1e-3]])
+    assert make_evaluator(ghost, PAPER)(rows)["itae"] == make_evaluator(paper, PAPER)(rows)["itae"]
+
+
+def test_page_settings_copy_and_pickle() -> None:
+    s = PageSettings(controller="pid", gains=(("kp", 1.0),), noise_std=1e-6, seed=3)
+    for other in (copy.copy(s), copy.deepcopy(s), pickle.loads(pickle.dumps(s))):
+        assert other == s and other.run == s.run and other.seed == 3

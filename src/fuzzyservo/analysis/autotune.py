@@ -44,8 +44,14 @@ from ..control.fuzzy_pi import KernelSystem
 from ..errors import FuzzyServoError, ParameterError
 from ..plant import ServoParams, to_dict
 from ..plant.zoh import check_delay
-from ..registry import ControllerKind, controller_kind, plant_kind
-from ..run import RunSpec
+from ..registry import (
+    DEFAULT_SUBSTEP,
+    ControllerKind,
+    controller_kind,
+    default_systems,
+    plant_kind,
+)
+from ..run import BatchRun, RunSpec
 from ..sim import DEFAULT_DELAY, Plant, Step, parse_reference
 from ..sim.closed_loop import plant_limits, time_grid
 from ..sim.references import check_reference_samples
@@ -279,9 +285,14 @@ class TuningSetup:
         if run.noise_std != 0.0:
             raise ParameterError("the tuner tunes without measurement noise: set the noise "
                                  "to 0 (a robust tuning takes noise from its sweep spec)")
-        if {r for r, _ in run.systems} != {r for r, _, _ in systems}:
-            raise ParameterError("TuningSetup.for_run: systems must record the run's fuzzy "
-                                 "systems from files, role for role")
+        if run.substep != DEFAULT_SUBSTEP:
+            raise ParameterError(f"the tuner runs the nonlinear plant at the default RK4 step "
+                                 f"bound ({DEFAULT_SUBSTEP:g} s): drop the substep "
+                                 f"{run.substep!r}")
+        files = dict(run.systems)
+        if any(files.get(role) != source for role, source, _ in systems):
+            raise ParameterError("TuningSetup.for_run: systems must record fuzzy systems of "
+                                 "the run's files, (role, file, sha256)")
         return cls(controller=run.controller, plant=run.plant, param_set=run.param_set,
                    overrides=run.overrides, start=run.start, step=float(ref.amplitude),
                    duration=run.duration, ts=run.ts, delay=run.delay, systems=systems,
@@ -293,7 +304,10 @@ class TuningSetup:
         :attr:`controller`; a stage of the paper's steps tunes another kind): a step of
         :attr:`step` from rest at :attr:`start`, on the nominal plant of a robust tuning;
         the fuzzy systems by the files they were read from. With ``gains``, the run of those
-        gains: what ``fuzzyservo simulate`` with its ``to_argv()`` makes."""
+        gains: what ``fuzzyservo simulate`` with its ``to_argv()`` makes. (A value where no
+        rule fires given with the files is not a setting of the tuning: its systems are
+        recorded by the digest of what was read; add ``no_rule_value`` to replay such a
+        run.)"""
         kind = controller_kind(self.controller if controller is None else controller)
         return RunSpec(controller=kind.name, gains=tuple((gains or {}).items()),
                        systems=tuple((r, src) for r, src, _ in self.systems
@@ -409,9 +423,17 @@ Evaluator = Callable[[FloatArray], dict[str, FloatArray]]
 TRACE_SAMPLES = 5_000_000
 
 
+def _batch(setup: TuningSetup, kind: ControllerKind, params: ServoParams,
+           systems: Mapping[str, KernelSystem] | None) -> BatchRun:
+    """The batch form of the run of ``kind``'s candidates, with the fuzzy systems given (None:
+    the paper's; the setup records the files by digest, the caller passes what it read)."""
+    given = default_systems() if systems is None else systems
+    return setup.run_spec(kind.name).build_batch(params=params, systems=given)
+
+
 def _evaluator(setup: TuningSetup, kind: ControllerKind, params: ServoParams,
                systems: Mapping[str, KernelSystem] | None) -> Evaluator:
-    batch = setup.run_spec(kind.name).build_batch(params=params, systems=systems)
+    batch = _batch(setup, kind, params, systems)
     n_samples = time_grid(setup.duration, setup.ts).size
     per_batch = max(1, TRACE_SAMPLES // n_samples)
 
@@ -447,7 +469,7 @@ def _robust_evaluator(setup: TuningSetup, kind: ControllerKind, params: ServoPar
     assert setup.robust is not None
     statistic = setup.robust.statistic
     # the template and the step of the run; the plants, delays and noise are the set's
-    batch = setup.run_spec(kind.name).build_batch(params=params, systems=systems)
+    batch = _batch(setup, kind, params, systems)
     m = len(robust)
     n_samples = time_grid(setup.duration, setup.ts).size
     per_batch = max(1, TRACE_SAMPLES // n_samples)

@@ -139,6 +139,10 @@ class PageSettings:
     def __repr__(self) -> str:
         return f"PageSettings({self.run!r})"
 
+    def __reduce__(self) -> tuple[Any, tuple[RunSpec]]:
+        # copy, deepcopy and pickle rebuild the settings from their run
+        return (PageSettings, (self.run,))
+
     def replace(self, **changes: Any) -> PageSettings:
         """These settings with ``changes`` to fields of the run."""
         return PageSettings(self.run, **changes)

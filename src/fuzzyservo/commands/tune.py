@@ -37,6 +37,7 @@ start + ``--step`` within the stroke, the transducer resolution no coarser than 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from pathlib import Path
@@ -180,9 +181,12 @@ def _setup(args: argparse.Namespace, params: ServoParams,
                                                 max_u=args.max_u)
     overrides = tuple(overrides_from_args(args).items()) if args.robust is None else ()
     record = systems_record(systems)
+    step = float(_given(args, "step"))
+    if not (math.isfinite(step) and step > 0.0):  # (before it is written as a reference)
+        raise ParameterError(f"TuningSetup.step must be finite and > 0, got {step!r}")
     run = RunSpec(controller=args.controller, plant=_given(args, "plant"),
                   param_set=set_name(args), overrides=overrides, start=_given(args, "start"),
-                  reference=f"step:{float(_given(args, 'step'))!r}",
+                  reference=f"step:{step!r}",
                   duration=_given(args, "duration"), ts=_given(args, "ts"),
                   delay=delay_from_args(args.delay, params),
                   systems=tuple((role, source) for role, source, _ in record))

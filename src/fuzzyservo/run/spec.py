@@ -283,7 +283,8 @@ class RunSpec:
 
         ``systems`` (role -> packed system) are the fuzzy systems when the caller holds them
         already (the study and the tuner read each file once for many runs): they replace
-        reading :attr:`systems`; a role the kind needs and ``systems`` lacks is refused.
+        reading :attr:`systems` (and the paper's for the roles no file gives), so they hold
+        every role the kind needs; one missing is refused.
 
         Raises
         ------
@@ -312,7 +313,9 @@ class RunSpec:
         if systems is None:
             return load_systems(self.controller, dict(self.systems), self.no_rule_value)
         needs = controller_kind(self.controller).systems
-        return {r: systems[r] for r in needs if r in systems} or None
+        if not needs:
+            return None
+        return {r: systems[r] for r in needs if r in systems}  # a missing one is refused
 
     def _resolved_params(self, params: ServoParams | None) -> ServoParams:
         """The servo parameters: :meth:`checked_params`, or ``params`` when the caller holds
@@ -320,9 +323,12 @@ class RunSpec:
         if params is None:
             return self.checked_params()
         named = self.checked_params()
-        if params is not named and repr(params) != repr(named):
-            mine, theirs = flat_params(named), flat_params(params)
-            diff = next(k for k in mine if repr(mine[k]) != repr(theirs[k]))
+        if params is named:
+            return params
+        mine, theirs = flat_params(named), flat_params(params)
+        # each value as the double the model computes with (an int 900 is 900.0), NaN equal
+        diff = next((k for k in mine if repr(mine[k]) != repr(theirs[k])), None)
+        if diff is not None:
             raise ParameterError(
                 f"the servo parameters given are not the run's set {self.param_set!r} with "
                 f"its overrides: {diff} is {theirs[diff]!r}, the run says {mine[diff]!r} "
@@ -342,10 +348,10 @@ class RunSpec:
         parameters, delay, start, reference, seed, plant.
 
         ``params`` and ``systems`` are the servo parameters and the fuzzy systems (role ->
-        packed system) when the caller holds them already (a parameter file read once, the
-        study's and the tuner's many runs): ``params`` must be the set with the overrides
-        (else :class:`ParameterError` names the first value that differs), ``systems``
-        replace reading the files of :attr:`systems`.
+        packed system, every role the kind needs) when the caller holds them already (the
+        study's and the tuner's many runs of one description): ``params`` must be the set
+        with the overrides, each value the same double (else :class:`ParameterError` names
+        the first that differs), ``systems`` replace reading the files of :attr:`systems`.
 
         Raises
         ------
@@ -392,8 +398,8 @@ class RunSpec:
         kind = controller_kind(self.controller)
         if self.gains:
             kind.check_gains(dict(self.gains))
-        template = kind.template(dt=ts, systems=self._fuzzy(systems),
-                                 options=self.option_map())
+        options = self.option_map()
+        template = kind.template(dt=ts, systems=self._fuzzy(systems), options=options)
         resolved, plant, reference = self._loop(params)
         return BatchRun(spec=self, template=template, plant=plant, params=resolved,
                         reference=reference)
@@ -484,9 +490,10 @@ class BatchRun:
 
 @functools.lru_cache(maxsize=64)
 def _plant(name: str, params: ServoParams, position: float, substep: float) -> Any:
-    """The registered plant, built once per process for equal arguments: plants are frozen,
-    and the study builds the same one for each of its runs (a linearisation and a matrix
-    exponential each, 0.4 ms on the linear plant)."""
+    """The registered plant, built once per process for equal arguments: plants are frozen
+    and nothing writes into their arrays (the loops copy the initial state), and the study
+    builds the same one for each of its runs (a linearisation and a matrix exponential
+    each, 0.4 ms on the linear plant)."""
     return build_plant(name, params, position, substep=substep)
 
 
