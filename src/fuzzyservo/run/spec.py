@@ -335,9 +335,9 @@ class RunSpec:
                 f"(add it to the overrides)")
         return params
 
-    def _check_run(self) -> None:
-        """The run's own settings, in the command line's order: substep (first), and after
-        the controller and parameters the delay, start, reference and seed."""
+    def _check_substep(self) -> None:
+        """The RK4 step bound, the command line's first check (the delay, start, reference
+        and seed follow the controller and the parameters: :meth:`_loop`)."""
         if not (math.isfinite(self.substep) and self.substep > 0.0):
             raise ParameterError(f"--substep must be finite and > 0 s, got {self.substep!r}")
 
@@ -359,7 +359,7 @@ class RunSpec:
             Whatever ``fuzzyservo simulate`` would reject for this run (one line, as it
             prints it).
         """
-        self._check_run()
+        self._check_substep()
         ctl = self.build_controller(systems=systems)
         resolved, plant, reference = self._loop(params)
         return BuiltRun(spec=self, controller=ctl.controller, plant=plant, params=resolved,
@@ -393,7 +393,7 @@ class RunSpec:
         ParameterError, InputError, FormatError
             As :meth:`build`.
         """
-        self._check_run()
+        self._check_substep()
         ts = self._checked_ts()
         kind = controller_kind(self.controller)
         if self.gains:
