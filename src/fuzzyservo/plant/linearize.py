@@ -21,6 +21,7 @@ from scipy import optimize
 
 from .._typing import FloatArray
 from ..errors import ParameterError, SimulationDivergedError
+from .dense import eigvals, modulus, solve
 from .nonlinear import (
     N_STATE,
     P_AF,
@@ -205,19 +206,22 @@ def linearize(params: ServoParams, position: float | None = None) -> Linearizati
     names = tuple(STATE_NAMES[i] for i in keep)
     c = np.zeros(len(keep))
     c[names.index("x")] = 1.0
-    eig = np.linalg.eigvals(a)
-    eig = eig[np.argsort(np.abs(eig), kind="stable")]
+    # eigenvalues and the solve below in plain IEEE arithmetic: LAPACK's last bits depend on
+    # the BLAS kernel, and the derived parameter sets are root solves over these (.dense)
+    eig = eigvals(a)
+    eig = eig[np.argsort(np.array([modulus(lam) for lam in eig.tolist()]), kind="stable")]
     # hydraulic mode: slowest complex pair, excluding the spool's own pair
     omega_v = lp.valve.omega_v
-    pairs = [lam for lam in eig if lam.imag > 1e-9 and abs(abs(lam) - omega_v) > 0.2 * omega_v]
+    pairs = [lam for lam in eig.tolist()
+             if lam.imag > 1e-9 and abs(modulus(lam) - omega_v) > 0.2 * omega_v]
     if not pairs:
         raise ParameterError(
             "the linearised model has no oscillatory hydraulic mode (damping >= 1); "
             "omega_0 and damping are undefined for these parameters"
         )
     lam = pairs[0]
-    omega_0 = float(abs(lam))
-    damping = float(-lam.real / abs(lam))
+    omega_0 = modulus(lam)
+    damping = float(-lam.real / omega_0)
     # steady velocity per unit command: solve the model without the position state; a
     # leak-free model has no steady pressure level, so take the limit of vanishing leakage
     aa, bb = a, b
@@ -226,7 +230,7 @@ def linearize(params: ServoParams, position: float | None = None) -> Linearizati
         aa, bb = _jacobian(tr.state, tr.command, pack(limit), scale)
         aa, bb = aa[np.ix_(keep, keep)], bb[keep]
     red = [i for i, n in enumerate(names) if n != "x"]
-    z = np.linalg.solve(aa[np.ix_(red, red)], -bb[red])
+    z = solve(aa[np.ix_(red, red)], -bb[red])
     velocity_gain = float(z[red.index(names.index("v"))])
     return Linearization(trim=tr, state_names=names, a=a, b=b, c=c,
                          eigenvalues=eig.astype(np.complex128), omega_0=omega_0,

@@ -14,8 +14,10 @@ u_{k-d} on [t_k + f, t_k + ts), so (Åström & Wittenmark, *Computer-Controlled 
 
 Each integral comes from one matrix exponential of the block matrix [[A, B], [0, 0]] (Van
 Loan, IEEE TAC 23(3), 1978); the exponential is :func:`expm`, balancing plus Higham's [13/13]
-Padé scaling and squaring, written with numpy because scipy's LAPACK threads stalled for
-milliseconds per call on a busy two-core machine (tests hold it to scipy's ``expm`` at 1e-13).
+Padé scaling and squaring, written here because scipy's LAPACK threads stalled for
+milliseconds per call on a busy two-core machine (tests hold it to scipy's ``expm`` at 1e-13),
+and computed with :mod:`.dense`'s products and solve, not numpy's BLAS, so that its bits do
+not depend on the machine's BLAS kernel.
 """
 
 from __future__ import annotations
@@ -25,9 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._jit import kernel
 from .._typing import ArrayLike, FloatArray
 from ..errors import ParameterError
+from .dense import balance, matmul, solve
 
 __all__ = ["DiscreteModel", "check_delay", "discretize", "expm", "split_delay"]
 
@@ -146,8 +148,8 @@ def discretize(a: ArrayLike, b: ArrayLike, ts: float, delay: float = 0.0) -> Dis
     phi_hf, g0 = _van_loan(am, bv, ts - f)
     if f > 0.0:
         phi_f, gf = _van_loan(am, bv, f)
-        phi = phi_hf @ phi_f
-        g1 = phi_hf @ gf
+        phi = matmul(phi_hf, phi_f)
+        g1 = matmul(phi_hf, gf)
     else:
         phi, g1 = phi_hf, np.zeros(n)
     return DiscreteModel(ts=float(ts), delay=float(delay), d=d, f=f, phi=phi, gamma0=g0,
@@ -160,43 +162,6 @@ _PADE13 = (64764752532480000.0, 32382376266240000.0, 7771770303897600.0,
 _THETA13 = 5.371920351148152
 
 
-@kernel
-def _balance(a: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Diagonal similarity B = D⁻¹ A D with powers of two (exact), as LAPACK's gebal."""
-    b = a.copy()
-    n = b.shape[0]
-    d = np.ones(n)
-    converged = False
-    while not converged:
-        converged = True
-        for i in range(n):
-            c = 0.0
-            r = 0.0
-            for j in range(n):
-                if j != i:
-                    c += abs(b[j, i])
-                    r += abs(b[i, j])
-            if c == 0.0 or r == 0.0:
-                continue
-            f = 1.0
-            total = c + r
-            while c < r / 2.0:
-                c *= 2.0
-                r /= 2.0
-                f *= 2.0
-            while c >= r * 2.0:
-                c /= 2.0
-                r *= 2.0
-                f /= 2.0
-            if c + r < 0.95 * total:
-                converged = False
-                d[i] *= f
-                for j in range(n):
-                    b[j, i] *= f
-                    b[i, j] /= f
-    return b, d
-
-
 def expm(a: FloatArray) -> FloatArray:
     """Matrix exponential: balancing, then scaling and squaring with the [13/13] Padé
     approximant (Higham, SIAM J. Matrix Anal. Appl. 26(4), 2005).
@@ -205,21 +170,24 @@ def expm(a: FloatArray) -> FloatArray:
     it the extra squarings cost three digits.
     """
     n = a.shape[0]
-    bal, d = _balance(np.asarray(a, dtype=np.float64))
+    bal, d = balance(np.asarray(a, dtype=np.float64))
     norm = float(np.max(np.sum(np.abs(bal), axis=0))) if n else 0.0
-    s = max(0, int(math.ceil(math.log2(norm / _THETA13)))) if norm > _THETA13 else 0
+    s = 0
+    if norm > _THETA13:  # the least s with norm / 2**s <= θ13, exactly (no libm log2)
+        mant, s = math.frexp(norm / _THETA13)
+        s -= 1 if mant == 0.5 else 0
     x = bal / 2.0**s
     b = _PADE13
     ident = np.eye(n)
-    x2 = x @ x
-    x4 = x2 @ x2
-    x6 = x4 @ x2
-    u = x @ (x6 @ (b[13] * x6 + b[11] * x4 + b[9] * x2)
-             + b[7] * x6 + b[5] * x4 + b[3] * x2 + b[1] * ident)
-    v = (x6 @ (b[12] * x6 + b[10] * x4 + b[8] * x2)
+    x2 = matmul(x, x)
+    x4 = matmul(x2, x2)
+    x6 = matmul(x4, x2)
+    u = matmul(x, matmul(x6, b[13] * x6 + b[11] * x4 + b[9] * x2)
+               + b[7] * x6 + b[5] * x4 + b[3] * x2 + b[1] * ident)
+    v = (matmul(x6, b[12] * x6 + b[10] * x4 + b[8] * x2)
          + b[6] * x6 + b[4] * x4 + b[2] * x2 + b[0] * ident)
-    r: FloatArray = np.asarray(np.linalg.solve(v - u, v + u), dtype=np.float64)
+    r = solve(v - u, v + u)
     for _ in range(s):
-        r = r @ r
+        r = matmul(r, r)
     out: FloatArray = r * d[:, None] / d[None, :]
     return out

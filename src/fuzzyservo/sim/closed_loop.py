@@ -33,6 +33,7 @@ import numpy as np
 from .._typing import ArrayLike, FloatArray
 from ..control.base import PackedController
 from ..errors import InputError, ParameterError, SimulationDivergedError
+from ..plant.dense import dot
 from ..plant.nonlinear import (
     N_PARAMS,
     P_L,
@@ -182,7 +183,7 @@ class LinearPlant:
     @property
     def y0(self) -> float:
         """Output at rest [m]: C x_op."""
-        return float(self.c @ self.x_op)
+        return dot(self.c, self.x_op)
 
     def discretize(self, ts: float, delay: float) -> FloatArray:
         """Packed ZOH discretisation with delay (:func:`fuzzyservo.plant.zoh.discretize`):

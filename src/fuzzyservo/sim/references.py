@@ -142,7 +142,11 @@ class Sine:
 
     def values(self, t: FloatArray) -> FloatArray:
         """r(t) [m]."""
-        return self.amplitude * np.sin(2.0 * np.pi * self.frequency * np.asarray(t))
+        # the C library's sin per element, as the compiled kernels call it: numpy's vector
+        # sin (AVX-512 processors) rounds differently (docs/architecture.md)
+        w = 2.0 * np.pi * self.frequency * np.asarray(t, dtype=np.float64)
+        s = np.array([math.sin(v) for v in w.ravel().tolist()], dtype=np.float64)
+        return self.amplitude * s.reshape(w.shape)
 
 
 @dataclass(frozen=True, slots=True)

@@ -72,6 +72,14 @@ def noise_seeds(seed: int, index: IntArray) -> IntArray:
     return (b >> np.uint64(1)).astype(np.int64)
 
 
+def _exp(x: FloatArray) -> FloatArray:
+    """e**x per element through the C library's ``exp``, as the compiled kernels call it:
+    numpy's own vector exp (AVX-512 processors) rounds differently, and the draws of a sweep
+    must not depend on the processor (docs/architecture.md, "Machine-independent results")."""
+    return np.array([math.exp(v) for v in np.asarray(x, dtype=np.float64).ravel().tolist()],
+                    dtype=np.float64).reshape(np.shape(x))
+
+
 def _truncated_std_normal(u: FloatArray, a: float, b: float) -> FloatArray:
     """The standard normal truncated to [a, b] at the quantiles ``u``. In the upper tail
     (a > 0) Φ rounds to 1 and the interval would vanish: there the lower tail's
@@ -92,7 +100,7 @@ def transform(var: Variation, u: FloatArray) -> FloatArray:
         return lo + (hi - lo) * u
     if var.distribution == "log-uniform":
         a, b = math.log(lo), math.log(hi)
-        return np.exp(a + (b - a) * u)
+        return _exp(a + (b - a) * u)
     if var.distribution == "normal":
         mean, std = var.arg("mean"), var.arg("std")
         return mean + std * _truncated_std_normal(u, (lo - mean) / std, (hi - mean) / std)
@@ -100,7 +108,7 @@ def transform(var: Variation, u: FloatArray) -> FloatArray:
         med, sig = var.arg("median"), var.arg("sigma")
         a = math.log(lo / med) / sig if lo > 0.0 else -math.inf
         b = math.log(hi / med) / sig if math.isfinite(hi) else math.inf
-        return med * np.exp(sig * _truncated_std_normal(u, a, b))
+        return med * _exp(sig * _truncated_std_normal(u, a, b))
     raise AssertionError(var.distribution)
 
 
