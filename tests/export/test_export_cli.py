@@ -171,3 +171,56 @@ def test_a_controller_without_c_code_is_refused_by_name() -> None:
     with pytest.raises(ParameterError, match="has no C port: its law command declares no "
                                              "c_source"):
         emit_controller(controller_kind("p"), {"kp": 1.0}, CommandSchedule(dt=1e-3), name="x")
+
+
+def test_a_failing_compiler_is_named_with_its_exit_status(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 29: with CC=/bin/false, ``export fmu`` said the generated code failed and asked
+    for a report. It names the compiler and its status, and blames the compiler when it
+    cannot build a trivial file either; a compiler that builds a trivial file but not the
+    generated code is the package's to fix (please report it)."""
+    old = tmp_path / "ctl.fmu"
+    old.write_bytes(b"previous")
+    argv = ["export", "fmu", "--controller", "pi", "--gains", "kp=1,ki=1", "--out", str(old)]
+    monkeypatch.setenv("CC", "/bin/false")
+    assert main(argv) == 2
+    line = _error_line(capsys)
+    assert "'/bin/false' (from $CC) exited with status 1" in line, line
+    assert "report" not in line and "set CC to a working C compiler" in line
+    assert old.read_bytes() == b"previous"
+    picky = tmp_path / "picky-cc"  # fails on the FMU's build only (its -fvisibility flag)
+    picky.write_text(f'#!/bin/sh\ncase "$*" in *-fvisibility=hidden*) echo "x.c:1: error: '
+                     f'no" >&2; exit 3;; esac\nexec {gcc()} "$@"\n')
+    picky.chmod(0o755)
+    monkeypatch.setenv("CC", str(picky))
+    assert main(argv) == 2
+    line = _error_line(capsys)
+    assert f"'{picky}' (from $CC) exited with status 3 on the generated code: x.c:1: " \
+           f"error: no; please report it" in line, line
+    assert old.read_bytes() == b"previous"
+
+
+@pytest.mark.parametrize("limit_kib", [8, 40])
+def test_a_file_size_limit_is_one_line(limit_kib: int, tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 29: ``export fmu`` under ``ulimit -f 8`` ended in a traceback (EFBIG writing
+    the build's sources). With the limit set on this process (Python ignores SIGXFSZ and
+    gets EFBIG; the compiler, which does not, is killed by it): 8 KiB stops the sources,
+    40 KiB the compiler's output; both are one line naming the limit, status 2."""
+    import resource
+
+    out = tmp_path / "ctl.fmu"
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit_kib * 1024, hard))
+    try:
+        status = main(["export", "fmu", "--controller", "pid", "--gains", "kp=1,ki=1,kd=0",
+                       "--out", str(out)])
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert status == 2
+    line = _error_line(capsys)
+    assert "size limit" in line and "ulimit -f" in line, line
+    if limit_kib == 8:
+        assert "File too large" in line and "sources/" in line, line
+    assert not out.exists()

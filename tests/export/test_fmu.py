@@ -41,7 +41,8 @@ TOL = 1e-9 * STROKE
 class Slave:
     """An FMU instance driven by hand, through FMPy's FMI 2.0 bindings."""
 
-    def __init__(self, path: Path, name: str) -> None:
+    def __init__(self, path: Path, name: str, start: float = 0.0,
+                 stop: float | None = None) -> None:
         self.md = read_model_description(str(path))
         self.dir = extract(str(path))
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
@@ -49,7 +50,7 @@ class Slave:
                              modelIdentifier=self.md.coSimulation.modelIdentifier,
                              instanceName=name)
         self.fmu.instantiate()
-        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.setupExperiment(startTime=start, stopTime=stop)
         self.fmu.enterInitializationMode()
 
     def set(self, **values: float) -> None:
@@ -68,8 +69,9 @@ class Slave:
 
 
 @contextmanager
-def slaves(*specs: tuple[Path, str]) -> Iterator[list[Slave]]:
-    made = [Slave(p, n) for p, n in specs]
+def slaves(*specs: tuple[Path, str], start: float = 0.0,
+           stop: float | None = None) -> Iterator[list[Slave]]:
+    made = [Slave(p, n, start, stop) for p, n in specs]
     try:
         yield made
     finally:
@@ -444,3 +446,299 @@ def test_the_fmi_wrapper_under_the_sanitizers(key: str, in_name: str, out_name: 
     assert run.returncode == 0 and run.stderr == "", run.stdout + run.stderr
     assert run.stdout.strip().endswith("done")
     assert "must be finite" in run.stdout and "not a state of this FMU" in run.stdout
+
+
+# --- issue 29, item 5: time as a master accumulates it, the stop time, alpha, units --------
+
+TS = 1e-3
+CONTROLLERS = ["p", "pi", "pid", "pid2", "fpi", "stfpi", "stfpi-general"]
+
+
+def _accumulating_loop(ctl_path: Path, servo_path: Path, n: int, *, start: float,
+                       substeps: int, stop: float | None = None
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The controller and the servo in a loop, as a master that accumulates time (t += h,
+    each FMU on its own clock): the controller in ``substeps`` steps of ts / substeps per
+    sample, the servo in steps of ts. Returns y_k, u_k, alpha_k and the number of steps
+    each FMU took (counted, and FMPy raises at the first refused one)."""
+    ys, us, alphas = [], [], []
+    steps = 0
+    with slaves((ctl_path, "ctl"), (servo_path, "servo"), start=start, stop=stop) as (
+            ctl, servo):
+        servo.fmu.exitInitializationMode()
+        y0 = servo.get("y")[0]
+        ctl.set(u_start=servo.get("u_trim")[0], y=y0, r=y0)
+        ctl.fmu.exitInitializationMode()
+        y, t_ctl, t_servo, h = y0, start, start, TS / substeps
+        for k in range(n):
+            ctl.set(r=y0 + (0.1 if k < n // 2 else -0.05), y=y)
+            for _ in range(substeps):
+                ctl.fmu.doStep(t_ctl, h)
+                t_ctl += h
+                steps += 1
+            u, a = ctl.get("u", "alpha")
+            ys.append(y)
+            us.append(u)
+            alphas.append(a)
+            servo.set(u=u)
+            servo.fmu.doStep(t_servo, TS)
+            t_servo += TS
+            y = servo.get("y")[0]
+    assert steps == n * substeps
+    return np.array(ys), np.array(us), np.array(alphas), steps
+
+
+@pytest.mark.parametrize("key", CONTROLLERS)
+def test_a_master_accumulating_time_steps_past_a_million_seconds(
+        key: str, fmus: dict[str, Path]) -> None:
+    """Issue 29: with t + h stepping, a controller FMU refused a step after 334 s (the
+    accumulated t missed the sample instant by more than 1e-9 s). Started at 1e6 s - 0.1 s
+    and stepped past 1e6 s in quarter samples (2.5e-4 s is not a binary fraction: every
+    t + h rounds, by up to 6e-11 s at 1e6 s, so the old test failed within 25 steps), both
+    FMUs take every step and compute the very samples of the same loop started at 0 in
+    whole samples (bit for bit: nothing in a step depends on t)."""
+    n = 400
+    ref = _accumulating_loop(fmus[key], fmus["servo-linear-0"], n, start=0.0, substeps=1)
+    far = _accumulating_loop(fmus[key], fmus["servo-linear-0"], n, start=1e6 - 0.1,
+                             substeps=4)
+    assert far[3] == 4 * n and 1e6 - 0.1 + far[3] * TS / 4 > 1e6 + 0.29
+    for a, b in zip(ref[:3], far[:3], strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert np.ptp(ref[0]) > 0.05  # the loop moved
+
+
+def test_alpha_is_what_simulate_records(fmus: dict[str, Path]) -> None:
+    """Issue 29: alpha read 1 in the pid2 and fpi FMUs where simulate writes NaN. Each
+    controller's alpha equals simulate's alpha of the same loop, NaN where it is NaN."""
+    plant = build_plant("linear", PARAMS, 0.5 * STROKE)
+    n = 300
+    for key in CONTROLLERS[:-1]:
+        path = GAINS / f"nonlinear-{key}.toml"
+        gains = dict(read_gains_file(path).gains) if path.exists() else (
+            {"kp": 20.0} if key == "p" else {"kp": 20.0, "ki": 20.0})
+        offsets = np.where(np.arange(n) < n // 2, 0.1, -0.05)
+        res = simulate(build_controller(key, gains, dt=TS), plant, offsets,
+                       duration=(n - 1) * TS)
+        y, u, alpha, _ = _accumulating_loop(fmus[key], fmus["servo-linear-0"], n, start=0.0,
+                                            substeps=1)
+        assert res.alpha is not None
+        np.testing.assert_array_equal(alpha, res.alpha, err_msg=key)
+        assert np.max(np.abs(u - res.u)) <= 1e-9, key
+    # the kinds this covers: NaN (no gain-updating factor), 1 (fpi), varying (stfpi)
+    assert np.isnan(res.alpha).sum() == 0 and np.ptp(res.alpha) > 0
+
+
+@pytest.mark.parametrize("key", ["pid2", "stfpi", "servo-linear-0", "servo-nonlinear-hose"])
+def test_the_stop_time_is_enforced(key: str, fmus: dict[str, Path],
+                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 29, FMI 2.0 (fmi2SetupExperiment): with stopTimeDefined a step past stopTime
+    is fmi2Error; it was fmi2OK. Up to the stop (t + h steps from 1e6 s, the last clipped
+    to land on it as fmuCheck does) every step is taken; one more step, and a step that
+    passes the stop within a sample, are refused for that reason."""
+    start, n = 1e6, 50
+    stop = start + n * TS
+    with slaves((fmus[key], "x"), start=start, stop=stop) as (x,):
+        x.fmu.exitInitializationMode()
+        t, taken = start, 0
+        for _ in range(n - 1):
+            x.fmu.doStep(t, TS)
+            t += TS
+            taken += 1
+        x.fmu.doStep(t, stop - t)
+        taken += 1
+        assert taken == n
+        capsys.readouterr()
+        with pytest.raises(Exception, match="(?i)error"):
+            x.fmu.doStep(stop, TS)
+        assert "passes the stop time" in capsys.readouterr().out
+    with slaves((fmus[key], "y"), start=0.0, stop=2.5 * TS) as (y,):
+        y.fmu.exitInitializationMode()
+        y.fmu.doStep(0.0, TS)
+        y.fmu.doStep(TS, TS)
+        capsys.readouterr()
+        with pytest.raises(Exception, match="(?i)error"):
+            y.fmu.doStep(2 * TS, TS)
+        assert "passes the stop time" in capsys.readouterr().out
+    with slaves((fmus[key], "z"), start=0.0) as (z,):  # no stop time: no limit
+        z.fmu.exitInitializationMode()
+        for k in range(5):
+            z.fmu.doStep(k * TS, TS)
+
+
+FMUCHECK_LOOP = r"""
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include "fmi2Functions.h"
+
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
+                   fmi2String category, fmi2String message, ...)
+{
+    va_list ap;
+    (void)env;
+    (void)name;
+    (void)status;
+    (void)category;
+    va_start(ap, message);
+    printf("log: ");
+    vprintf(message, ap);
+    printf("\n");
+    va_end(ap);
+}
+
+/* The FMI Compliance Checker's co-simulation loop (fmi2_cs_sim.c): tnext = tcur + h, the
+ * last step clipped to land on tend when the FMU takes variable steps. Prints the steps
+ * taken and the time reached. */
+int main(int argc, char **argv)
+{
+    fmi2CallbackFunctions cb = {logger, calloc, free, NULL, NULL};
+    double tstart, tend, h, tcur;
+    int clip, stop_defined;
+    long steps = 0;
+    fmi2Component c;
+    if (argc != 6) {
+        return 2;
+    }
+    tstart = atof(argv[1]);
+    tend = atof(argv[2]);
+    h = atof(argv[3]);
+    clip = atoi(argv[4]);
+    stop_defined = atoi(argv[5]);
+    tcur = tstart;
+    c = fmi2Instantiate("x", fmi2CoSimulation, GUID, "", &cb, 0, 0);
+    if (c == NULL || fmi2SetupExperiment(c, 0, 0.0, tstart, stop_defined, tend) != fmi2OK
+        || fmi2EnterInitializationMode(c) != fmi2OK
+        || fmi2ExitInitializationMode(c) != fmi2OK) {
+        printf("failed to initialise\n");
+        return 1;
+    }
+    while (tcur < tend) {
+        double hstep = h, tnext = tcur + h;
+        if (tnext > tend - 1e-3 * h && clip) {
+            hstep = tend - tcur;
+            tnext = tend;
+        }
+        if (fmi2DoStep(c, tcur, hstep, fmi2True) != fmi2OK) {
+            printf("refused %ld %.17g\n", steps, tcur);
+            return 1;
+        }
+        tcur = tnext;
+        steps += 1;
+    }
+    printf("steps %ld %.17g\n", steps, tcur);
+    fmi2Terminate(c);
+    fmi2FreeInstance(c);
+    return 0;
+}
+"""
+
+
+@pytest.mark.parametrize("key, clip", [("stfpi", 1), ("pid", 1), ("servo-nonlinear-0", 0)])
+def test_the_compliance_checkers_loop_runs_to_the_end(key: str, clip: int,
+                                                      fmus: dict[str, Path],
+                                                      tmp_path: Path) -> None:
+    """Issue 29: ``fmuCheck.linux64 -k cs -h 0.001 -s 400 stfpi.fmu`` stopped at 334.587 s.
+    Its loop, in C against the FMU's sources: 0 to 400 s and 0 to 1000 s in 1 ms steps
+    (the last clipped to land on the end, carrying the accumulated rounding: 2.5e-9 s and
+    1.7e-8 s), and 1e6 to 1e6 + 200 s, with and without a stop time; the servo, which
+    takes whole samples only, unclipped. Every step is taken (counted)."""
+    import subprocess
+    import zipfile
+
+    from tests.export.cbuild import STRICT, gcc
+
+    md = read_model_description(str(fmus[key]))
+    with zipfile.ZipFile(fmus[key]) as zf:
+        names = [n for n in zf.namelist() if n.startswith("sources/")]
+        zf.extractall(tmp_path, names)
+    src = tmp_path / "sources"
+    (src / "driver.c").write_text(FMUCHECK_LOOP.replace("GUID", f'"{md.guid}"'))
+    fmi2 = ROOT / "src" / "fuzzyservo" / "export" / "csrc" / "fmi2"
+    exe = tmp_path / "driver"
+    proc = subprocess.run([gcc(), *STRICT, "-O2", f"-I{fmi2}", f"-I{src}", "-o", str(exe),
+                           *map(str, sorted(src.glob("*.c"))), "-lm"],
+                          capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr
+    for tstart, tend in ((0.0, 400.0), (0.0, 1000.0), (1e6, 1e6 + 200.0)):
+        n, reached = _fmucheck_steps(tstart, tend, TS, clip)
+        # unclipped, the accumulated t may fall short of tend and the loop step past it,
+        # which a stop time forbids: the servo runs without one, as fmuCheck runs it
+        for stop_defined in (0, 1) if clip else (0,):
+            run = subprocess.run([str(exe), repr(tstart), repr(tend), repr(TS), str(clip),
+                                  str(stop_defined)], capture_output=True, text=True,
+                                 check=False, timeout=600)
+            assert run.returncode == 0, run.stdout
+            word, steps, t_end = run.stdout.split()
+            assert (word, int(steps), float(t_end)) == ("steps", n, reached), run.stdout
+            assert n >= round((tend - tstart) / TS)
+
+
+def _fmucheck_steps(tstart: float, tend: float, h: float, clip: int) -> tuple[int, float]:
+    """The steps fmuCheck's loop makes and the time it reaches (the loop in Python: the same
+    IEEE double arithmetic, no FMU)."""
+    tcur, steps = tstart, 0
+    while tcur < tend:
+        tnext = tcur + h
+        if tnext > tend - 1e-3 * h and clip:
+            tnext = tend
+        tcur = tnext
+        steps += 1
+    return steps, tcur
+
+
+def test_every_variable_has_a_declared_unit(fmus: dict[str, Path]) -> None:
+    """Issue 29: ``kde`` had no unit. Every Real variable of every FMU names a unit that the
+    model description declares (FMI 2.0 <UnitDefinitions>)."""
+    import xml.etree.ElementTree as ET
+    import zipfile
+
+    for key, path in fmus.items():
+        with zipfile.ZipFile(path) as zf:
+            root = ET.fromstring(zf.read("modelDescription.xml"))
+        declared = {u.attrib["name"] for u in root.iter("Unit")}
+        for v in root.iter("ScalarVariable"):
+            unit = v.find("Real").attrib.get("unit")  # type: ignore[union-attr]
+            assert unit in declared, (key, v.attrib["name"], unit)
+    root = ET.fromstring(zipfile.ZipFile(fmus["stfpi"]).read("modelDescription.xml"))
+    kde = next(v for v in root.iter("ScalarVariable") if v.attrib["name"] == "kde")
+    assert kde.find("Real").attrib["unit"] == "1/m per sample"  # type: ignore[union-attr]
+
+
+def test_a_refused_gain_leaves_the_error_state_docs_describe(
+        fmus: dict[str, Path], capsys: pytest.CaptureFixture[str]) -> None:
+    """docs/export.md, "Tuning": a gain out of range is fmi2Error; the instance is then in
+    FMI's error state: the gains read back unchanged, a step is refused, a state saved
+    before restores it (the run goes on as if the call had not been made), and
+    fmi2Reset starts afresh."""
+    with slaves((fmus["fpi"], "ctl")) as (ctl,):
+        ctl.set(y=0.5, r=0.5)
+        ctl.fmu.exitInitializationMode()
+        t = 0.0
+        for _ in range(5):
+            ctl.set(r=0.6)
+            ctl.fmu.doStep(t, TS)
+            t += TS
+        saved = ctl.fmu.getFMUstate()
+        before = ctl.get("kdu", "u")
+        capsys.readouterr()
+        with pytest.raises(Exception, match="(?i)error"):
+            ctl.set(kdu=-1.0)
+        assert "gain kdu = -1 is out of range" in capsys.readouterr().out
+        assert ctl.get("kdu", "u") == before
+        with pytest.raises(Exception, match="(?i)error"):
+            ctl.fmu.doStep(t, TS)
+        ctl.fmu.setFMUstate(saved)
+        ctl.fmu.doStep(t, TS)
+        after_restore = ctl.get("u")
+        ctl.fmu.freeFMUstate(saved)
+        ctl.fmu.reset()
+        ctl.fmu.setupExperiment(startTime=0.0)
+        ctl.fmu.enterInitializationMode()
+        ctl.set(y=0.5, r=0.5)
+        ctl.fmu.exitInitializationMode()
+        t = 0.0
+        for _ in range(6):
+            ctl.set(r=0.6)
+            ctl.fmu.doStep(t, TS)
+            t += TS
+        assert ctl.get("u") == after_restore  # the same run as if the call had not been made

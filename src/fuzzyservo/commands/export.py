@@ -9,6 +9,7 @@ from typing import Any
 
 from ..errors import ParameterError
 from ..export import EXPORT_TARGETS, export_target_names
+from ..export._c import escape_text
 from ..export.targets import (
     check_c_folder,
     export_c,
@@ -109,7 +110,8 @@ def _run_c(args: argparse.Namespace) -> int:
         check_c_folder(args.out, args.name)
     cc = _generate(args)
     hdr, src = export_c(cc, args.out)
-    print(f"wrote {hdr} and {src} ({cc.kind}, {cc.real}, ts = {cc.ts:g} s)")
+    print(f"wrote {escape_text(hdr)} and {escape_text(src)} ({cc.kind}, {cc.real}, "
+          f"ts = {cc.ts:g} s)")
     return 0
 
 
@@ -128,7 +130,7 @@ def _run_fmu(args: argparse.Namespace) -> int:
         cc = _generate(args)
         path = export_controller_fmu(cc, args.out, command=_command(getattr(args, "argv",
                                                                           None)))
-        print(f"wrote {path} (controller {cc.kind}, {cc.real}, ts = {cc.ts:g} s)")
+        print(f"wrote {escape_text(path)} (controller {cc.kind}, {cc.real}, ts = {cc.ts:g} s)")
         return 0
     given = [k for k in (*_CONTROLLER_ONLY, *(o.name for o in controller_options()))
              if getattr(args, k, None) is not None]
@@ -150,5 +152,5 @@ def _run_fmu(args: argparse.Namespace) -> int:
                             name=args.name,
                             description=f"{args.plant} servo exported by "
                                         f"{_command(getattr(args, 'argv', None))}")
-    print(f"wrote {path} ({args.plant} servo, ts = {ts:g} s, delay {delay:g} s)")
+    print(f"wrote {escape_text(path)} ({args.plant} servo, ts = {ts:g} s, delay {delay:g} s)")
     return 0

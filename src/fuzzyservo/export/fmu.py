@@ -20,9 +20,12 @@ their default step.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
+import re
 import shutil
+import signal
 import subprocess
 import tempfile
 import uuid
@@ -31,12 +34,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from xml.sax.saxutils import escape, quoteattr
+from xml.sax.saxutils import escape
+from xml.sax.saxutils import quoteattr as _quoteattr
 
 from .. import __version__
-from ..errors import FuzzyServoError, ParameterError
+from ..errors import FuzzyServoError, OutputError, ParameterError
 from ..registry import controller_kind
-from ._c import c_literal
+from ._c import c_literal, escape_text
 from .controller_c import CController
 
 __all__ = [
@@ -82,6 +86,63 @@ def c_compiler() -> str:
                         "PATH (install gcc, or set CC)")
 
 
+def _which_compiler(cc: str) -> str:
+    """``cc`` named for a message: where it came from."""
+    shown = "'" + escape_text(cc) + "'"
+    return f"{shown} (from $CC)" if os.environ.get("CC") == cc else shown
+
+
+def _exit_text(code: int) -> str:
+    """A process's return code as words: its exit status, or the signal that ended it."""
+    if code >= 0:
+        return f"exited with status {code}"
+    try:
+        name = signal.Signals(-code).name
+    except ValueError:
+        name = f"signal {-code}"
+    if -code == getattr(signal, "SIGXFSZ", -1):
+        return f"was killed by {name} (a file grew past the size limit, ulimit -f)"
+    return f"was killed by {name}"
+
+
+def _first_message(stderr: str) -> str:
+    """The compiler's first error line (else its first line), escaped to one line."""
+    lines = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
+    first = next((ln for ln in lines if "error" in ln), lines[0] if lines else "")
+    return escape_text(first[:300])
+
+
+def _run_compiler(cmd: list[str], cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True, errors="replace",
+                              check=False, cwd=cwd)
+    except OSError as exc:
+        raise CompilerError(f"cannot run the C compiler {_which_compiler(cmd[0])}: "
+                            f"{exc.strerror or exc}") from None
+
+
+def _file_size_limit() -> int | None:
+    """The soft limit on the size of a file this process writes [bytes], or None."""
+    try:
+        import resource
+    except ImportError:  # not POSIX
+        return None
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    return None if soft == resource.RLIM_INFINITY else int(soft)
+
+
+def _compiler_works(cc: str, folder: Path) -> bool:
+    """Whether ``cc`` compiles a trivial C file into a shared library in ``folder``."""
+    probe = folder / "fs_probe.c"
+    try:
+        probe.write_text("int fs_probe(void) { return 0; }\n", encoding="ascii")
+    except OSError:
+        return False
+    proc = _run_compiler([cc, "-fPIC", "-shared", "-o", str(folder / "fs_probe.so"),
+                          str(probe)])
+    return proc.returncode == 0
+
+
 def compile_shared(sources: Sequence[Path], out: Path, *, include: Sequence[Path] = (),
                    flags: Sequence[str] = ()) -> None:
     """Compile ``sources`` into the shared library ``out`` with :data:`STRICT_FLAGS`, ``-O2``
@@ -90,19 +151,32 @@ def compile_shared(sources: Sequence[Path], out: Path, *, include: Sequence[Path
     Raises
     ------
     CompilerError
-        The compiler is missing or failed (its first error line in the message).
+        The compiler is missing, cannot run, was killed, or failed: one line naming the
+        compiler and its exit status (or signal) and its first message. When it cannot
+        compile a trivial file either the compiler is named as the cause; otherwise it is
+        the generated code, which is the package's to fix (please report it).
     """
-    cmd = [c_compiler(), *STRICT_FLAGS, "-O2", "-fPIC", "-shared", "-fvisibility=hidden",
+    cc = c_compiler()
+    cmd = [cc, *STRICT_FLAGS, "-O2", "-fPIC", "-shared", "-fvisibility=hidden",
            *flags, *(f"-I{p}" for p in include), "-o", str(out), *map(str, sources), "-lm"]
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
-    except OSError as exc:
-        raise CompilerError(f"cannot run the C compiler {cmd[0]!r}: {exc.strerror}") from None
-    if proc.returncode != 0:
-        first = next((ln for ln in proc.stderr.splitlines() if "error" in ln),
-                     proc.stderr.strip().splitlines()[0] if proc.stderr.strip() else "")
-        raise CompilerError(f"the C compiler failed on the generated code ({first.strip()}); "
-                            f"please report it with the command that made it")
+    proc = _run_compiler(cmd)
+    if proc.returncode == 0:
+        return
+    what = _exit_text(proc.returncode)
+    msg = _first_message(proc.stderr)
+    said = f": {msg}" if msg else " with no message"
+    limit = _file_size_limit()
+    if limit is not None:
+        raise CompilerError(f"the C compiler {_which_compiler(cc)} {what}{said}; a file size "
+                            f"limit of {limit} bytes is set (ulimit -f), which the build may "
+                            f"exceed: raise it")
+    if (proc.returncode < 0 or re.search(r"signal|killed", proc.stderr, re.IGNORECASE)
+            or not _compiler_works(cc, out.parent)):
+        raise CompilerError(f"the C compiler {_which_compiler(cc)} {what}{said}; it cannot "
+                            f"build even a trivial shared library here: install gcc or set "
+                            f"CC to a working C compiler")
+    raise CompilerError(f"the C compiler {_which_compiler(cc)} {what} on the generated "
+                        f"code{said}; please report it with the command that made it")
 
 
 @dataclass(frozen=True, slots=True)
@@ -132,6 +206,24 @@ class FmuVariable:
     initial_deps: tuple[str, ...] = ()
 
 
+# characters XML 1.0 cannot hold, not even as a character reference
+_NOT_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+
+
+def xml_text(text: object) -> str:
+    """``text`` as XML 1.0 can hold it: verbatim, but for the characters XML cannot carry at
+    all (control characters other than tab and line breaks, lone surrogates from undecodable
+    file names, U+FFFE, U+FFFF), written as their escapes (``\\x01``, ``\\udcff``; see
+    :func:`fuzzyservo.export._c.escape_text`)."""
+    return _NOT_XML.sub(lambda m: escape_text(m.group(0)), str(text))
+
+
+def quoteattr(text: object) -> str:
+    """``text`` as a quoted XML attribute value: :func:`xml_text`, then ``&``, ``<``, ``>``,
+    quotes, tabs and line breaks escaped (``xml.sax.saxutils.quoteattr``)."""
+    return _quoteattr(xml_text(text))
+
+
 def _xml_real(v: float) -> str:
     """A float as XML Schema's xs:double writes it (INF, -INF, NaN; repr otherwise)."""
     if v != v:
@@ -146,6 +238,8 @@ _BASE_UNITS: dict[str, dict[str, int]] = {
     "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "m/s2": {"m": 1, "s": -2},
     "Pa": {"kg": 1, "m": -1, "s": -2}, "s": {"s": 1}, "1/s": {"s": -1}, "1/m": {"m": -1},
     "1/(m s)": {"m": -1, "s": -1}, "s/m": {"s": 1, "m": -1}, "1": {}, "-": {},
+    # K_delta_e scales the error's change over one sample: a count of samples has no unit
+    "1/m per sample": {"m": -1},
 }
 
 
@@ -260,26 +354,53 @@ def _with_wrapper(model: str) -> str:
 
 def _package(identifier: str, md: str, sources: Mapping[str, str], compiled: Sequence[str]
              ) -> bytes:
-    """Compile ``compiled`` (names in ``sources``) and zip the FMU; returns its bytes."""
-    with tempfile.TemporaryDirectory(prefix="fuzzyservo-fmu-") as tmp:
-        root = Path(tmp)
-        src = root / "sources"
-        src.mkdir()
-        for name, text in {**sources, **_fmi2_headers()}.items():
+    """Compile ``compiled`` (names in ``sources``) and zip the FMU; returns its bytes.
+
+    Raises
+    ------
+    CompilerError
+        The compiler failed (:func:`compile_shared`).
+    OutputError
+        The build folder (in the temporary directory) cannot be written: a full disk, a
+        file size limit (``ulimit -f``), no temporary directory.
+    """
+    try:
+        with tempfile.TemporaryDirectory(prefix="fuzzyservo-fmu-") as tmp:
+            return _build(Path(tmp), identifier, md, sources, compiled)
+    except OSError as exc:
+        if isinstance(exc, FuzzyServoError):
+            raise
+        where = ("'" + escape_text(exc.filename) + "'" if exc.filename else
+                 "in the temporary directory")
+        why = exc.strerror or str(exc)
+        if exc.errno == errno.EFBIG:
+            why += " (the file size limit, ulimit -f)"
+        raise OutputError(f"cannot build the FMU: writing {where} failed: {why}; nothing "
+                          f"was written") from None
+
+
+def _build(root: Path, identifier: str, md: str, sources: Mapping[str, str],
+           compiled: Sequence[str]) -> bytes:
+    src = root / "sources"
+    src.mkdir()
+    for name, text in {**sources, **_fmi2_headers()}.items():
+        try:
             (src / name).write_text(text, encoding="utf-8")
-        lib = root / f"{identifier}.so"
-        compile_shared([src / c for c in compiled], lib, include=[src])
-        out = root / "fmu.zip"
-        entries = [("modelDescription.xml", md.encode("utf-8"), 0o644),
-                   (f"binaries/{FMU_PLATFORM}/{identifier}.so", lib.read_bytes(), 0o755)]
-        entries += [(f"sources/{name}", (src / name).read_bytes(), 0o644) for name in sources]
-        with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
-            for arcname, data, mode in entries:  # fixed dates: the same export, the same zip
-                info = zipfile.ZipInfo(arcname, date_time=(1980, 1, 1, 0, 0, 0))
-                info.external_attr = mode << 16
-                info.compress_type = zipfile.ZIP_DEFLATED
-                zf.writestr(info, data)
-        return out.read_bytes()
+        except OSError as exc:  # write() does not name the file
+            raise OSError(exc.errno, exc.strerror, str(src / name)) from None
+    lib = root / f"{identifier}.so"
+    compile_shared([src / c for c in compiled], lib, include=[src])
+    out = root / "fmu.zip"
+    entries = [("modelDescription.xml", md.encode("utf-8"), 0o644),
+               (f"binaries/{FMU_PLATFORM}/{identifier}.so", lib.read_bytes(), 0o755)]
+    entries += [(f"sources/{name}", (src / name).read_bytes(), 0o644) for name in sources]
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
+        for arcname, data, mode in entries:  # fixed dates: the same export, the same zip
+            info = zipfile.ZipInfo(arcname, date_time=(1980, 1, 1, 0, 0, 0))
+            info.external_attr = mode << 16
+            info.compress_type = zipfile.ZIP_DEFLATED
+            zf.writestr(info, data)
+    return out.read_bytes()
 
 
 # --- the controller FMU ------------------------------------------------------------------
@@ -303,18 +424,30 @@ struct fsm_model {
     @NAME@_ctl c;
     double r, y, u, alpha, u_start, t0;
     double g[@UPPER@_N_GAINS];
-    long k; /* index of the next sample: t_k = t0 + k ts */
+    double n;     /* samples taken (a whole number; exact in a double up to 2^53) */
+    double since; /* time since the last sample: the sum of the steps' sizes */
 };
+
+/* The value of alpha: the law's traced state field, as simulate records it (NAN for a law
+ * that traces none). */
+#define FSM_TRACE(m) (@TRACE@)
 
 static void fsm_defaults(struct fsm_model *m)
 {
     int i;
     memset(m, 0, sizeof *m);
-    m->alpha = 1.0;
     for (i = 0; i < @UPPER@_N_GAINS; i++) {
         m->g[i] = @NAME@_gain_default(i);
     }
     @NAME@_init(&m->c, 0, 0);
+    m->alpha = FSM_TRACE(m);
+}
+
+/* Time since t0 as the samples count it: (n - 1) ts to the last sample, then the steps
+ * since (the nominal grid, free of the rounding that accumulates in a master's t). */
+static double fsm_elapsed(const struct fsm_model *m)
+{
+    return (m->n > 0.0 ? (m->n - 1.0) * FSM_TS : 0.0) + m->since;
 }
 
 static void fsm_gain_message(int bad, double v, char *msg)
@@ -407,37 +540,38 @@ static int fsm_initialize(struct fsm_model *m, double t0, char *msg)
     }
     @NAME@_reset(&m->c, (@NAME@_real)m->y, (@NAME@_real)m->u_start);
     m->u = m->u_start;
-    m->alpha = 1.0;
+    m->alpha = FSM_TRACE(m);
     m->t0 = t0;
-    m->k = 0;
+    m->n = 0.0;
+    m->since = 0.0;
     return 0;
 }
 
+/* A sample is due at the start of the first step and whenever the steps since the last
+ * sample add up to ts; a step may not pass the next sample. Counted from the steps' sizes,
+ * not from t: a master's t + h drifts from t0 + k ts by rounding that grows with |t| and the
+ * number of steps (1e-9 s after 334 s of 1 ms steps, 0.1 ms after 1e5 s). The tolerance is
+ * 1e-6 ts plus the master's drift so far (its t against t0 plus the sum of its steps, at
+ * most ts / 2), which a last step clipped to land on a stop time carries; what a step
+ * passes a sample by counts towards the next (the samples stay on the steps' grid). */
 static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
 {
-    double tol = 1e-6 * FSM_TS;
-    double tk = m->t0 + (double)m->k * FSM_TS;
-    int sample = 0;
-    if (t > tk + tol) {
-        sprintf(msg, "the step from t = %.17g s skips the sample at %.17g s: communication "
-                "points must include every sample instant t0 + k ts, ts = %g s", t, tk,
-                FSM_TS);
-        return 1;
-    }
-    if (t >= tk - tol) {
-        sample = 1;
-        tk = m->t0 + (double)(m->k + 1) * FSM_TS;
-    }
-    if (t + h > tk + tol) {
-        sprintf(msg, "the step from t = %.17g s to %.17g s passes the sample at %.17g s: a "
-                "step may not be longer than the time to the next sample (ts = %g s)", t,
-                t + h, tk, FSM_TS);
+    double drift = fabs(t - (m->t0 + fsm_elapsed(m)));
+    double tol = 1e-6 * FSM_TS + (drift < 0.5 * FSM_TS ? drift : 0.5 * FSM_TS);
+    int sample = m->n == 0.0 || m->since >= FSM_TS - tol;
+    double since = m->n == 0.0 ? 0.0 : (sample ? m->since - FSM_TS : m->since);
+    if (since + h > FSM_TS + tol) {
+        sprintf(msg, "the step from t = %.17g s to %.17g s passes the next sample, due at "
+                "%.17g s: a step may not be longer than the time to the next sample (ts = "
+                "%g s)", t, t + h, t + (FSM_TS - since), FSM_TS);
         return 1;
     }
     if (sample) {
         m->u = (double)@NAME@_step(&m->c, (@NAME@_real)m->r, (@NAME@_real)m->y);
-@ALPHA@        m->k += 1;
+        m->alpha = FSM_TRACE(m);
+        m->n += 1.0;
     }
+    m->since = since + h;
     return 0;
 }
 """
@@ -460,25 +594,25 @@ def controller_fmu(cc: CController, *, kind_title: str, command: str = "") -> by
         FmuVariable("y", "measured position", "m", "input", "continuous", 0.0),
         FmuVariable("u", "command, a fraction of the rated valve input, held between "
                     "samples", "1", "output", "discrete", initial_deps=("u_start",)),
-        FmuVariable("alpha", "gain-updating factor of the last sample (1 without "
-                    "self-tuning)", "1", "output" if cc.self_tuning else "local",
-                    "discrete"),
+        FmuVariable("alpha", "gain-updating factor of the last sample, as simulate records "
+                    "it (1 without self-tuning; NaN for a law without one)" if cc.trace_index
+                    is not None else "no gain-updating factor: NaN, as simulate records it",
+                    "1", "output" if cc.self_tuning else "local", "discrete"),
         FmuVariable("u_start", "holding command at start (bumpless start from rest)", "1",
                     "parameter", "fixed", 0.0),
         FmuVariable("ts", "sample time", "s", "local", "constant", cc.ts),
     ]
     kind = controller_kind(cc.kind)
     for g, v, u in zip(cc.gain_names, cc.gains, cc.gain_units, strict=True):
-        unit = "1" if u == "-" else (u if u in _BASE_UNITS else "")
+        unit = "1" if u == "-" else u
         variables.append(FmuVariable(g, f"{kind.gain(g).description} [{u}]", unit,
                                      "parameter", "tunable", v))
     wrapper = f"{identifier}_fmi2.c"
-    alpha = (f"        m->alpha = (double){cc.name}_alpha(&m->c);\n" if cc.self_tuning
-             else "")
+    trace = "NAN" if cc.trace_index is None else f"(double)(m)->c.s[{cc.trace_index}]"
     model = (_CTL_MODEL.replace("@NAME@", cc.name).replace("@UPPER@", cc.name.upper())
              .replace("@TS@", c_literal(cc.ts))
              .replace("@FIRST_GAIN@", str(first_gain)).replace("@VERSION@", __version__)
-             .replace("@ALPHA@", alpha))
+             .replace("@TRACE@", trace))
     text = _with_wrapper(model)
     guid = _guid(cc.header, cc.source, text)  # the code: a state fits the same code only
     sources = {**cc.files(), wrapper: text.replace("@GUID@", guid)}
@@ -513,6 +647,7 @@ _SERVO_MODEL = """\
 struct fsm_model {
     fs_servo s; /* at t0 + fs_servo_time(&s) */
     double u, t0;
+    double sum; /* the sum of the steps' sizes */
 };
 
 static void fsm_defaults(struct fsm_model *m)
@@ -554,16 +689,25 @@ static int fsm_initialize(struct fsm_model *m, double t0, char *msg)
     (void)msg;
     fs_servo_init(&m->s);
     m->t0 = t0;
+    m->sum = 0.0;
     return 0;
 }
 
+/* Time since t0 as the samples count it. */
+static double fsm_elapsed(const struct fsm_model *m)
+{
+    return fs_servo_time(&m->s);
+}
+
+/* A step is a whole number of samples, within 1e-6 ts plus the master's drift so far (its t
+ * against t0 plus the sum of its steps, at most ts / 2; see the controller's FMU). */
 static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
 {
-    double tol = 1e-6 * FSM_TS;
+    double drift = fabs(t - (m->t0 + m->sum));
+    double tol = 1e-6 * FSM_TS + (drift < 0.5 * FSM_TS ? drift : 0.5 * FSM_TS);
     double n = floor(h / FSM_TS + 0.5);
-    double tk = m->t0 + fs_servo_time(&m->s); /* = t: the wrapper checked the start */
+    double tk = m->t0 + fs_servo_time(&m->s);
     long j;
-    (void)t;
     if (fabs(h - n * FSM_TS) > tol) {
         sprintf(msg, "the communication step %.17g s is not a whole number of samples of "
                 "ts = %g s", h, FSM_TS);
@@ -577,6 +721,7 @@ static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
             return 1;
         }
     }
+    m->sum += h;
     return 0;
 }
 """
@@ -600,8 +745,8 @@ def servo_fmu(servo: object, *, identifier: str, plant_name: str, description: s
     variables = [FmuVariable("u", "valve command, a fraction of the rated input (held over "
                              "each step)", "1", "input", "continuous", u_trim)]
     for name, unit, desc in zip(outputs, units, descriptions, strict=True):
-        variables.append(FmuVariable(name, desc, unit if unit in _BASE_UNITS else "",
-                                     "output", "continuous"))
+        variables.append(FmuVariable(name, desc, "1" if unit == "-" else unit, "output",
+                                     "continuous"))
     variables += [
         FmuVariable("ts", "sample time: communication steps are whole multiples", "s",
                     "local", "constant", ts),

@@ -34,7 +34,7 @@ from .._typing import FloatArray, IntArray
 from ..errors import ParameterError
 from ..fuzzy import general as _g
 from ..fuzzy.kernels import LIMS_SIZE
-from ._c import Real, c_literal
+from ._c import C_KEYWORDS, Real, c_literal
 
 __all__ = ["Scratch", "emit_pair", "emit_system", "fragment", "scratch_sizes"]
 
@@ -42,10 +42,6 @@ __all__ = ["Scratch", "emit_pair", "emit_system", "fragment", "scratch_sizes"]
 _INT32_MIN = -(2**31)
 _INT32_MAX = 2**31 - 1
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-_C_KEYWORDS = frozenset(
-    "auto break case char const continue default do double else enum extern float for goto "
-    "if inline int long register restrict return short signed sizeof static struct switch "
-    "typedef union unsigned void volatile while _Bool _Complex _Imaginary".split())
 #: Scratch of the smooth path besides its knots and cuts: two quadrature stacks of 256, the
 #: scan's abscissae and values (SCAN_CELLS + 1 each), and the cuts' last 2, as laid out in
 #: ``fs_smooth``.
@@ -77,7 +73,7 @@ def _fragment_names() -> frozenset[str]:
 
 
 def _check_name(name: str, extra: tuple[str, ...] = ()) -> None:
-    if not isinstance(name, str) or not _IDENT.match(name) or name in _C_KEYWORDS:
+    if not isinstance(name, str) or not _IDENT.match(name) or name in C_KEYWORDS:
         raise ParameterError(f"C name {name!r} is not an identifier (a letter or _, then "
                              f"letters, digits or _; not a keyword)")
     taken = _fragment_names()

@@ -108,7 +108,8 @@ def generate_c(kind_name: str, gains: Mapping[str, float], *, ts: float,
     kind = controller_kind(kind_name)
     checked = kind.check_gains(gains)
     controller = kind.build(checked, dt=ts, systems=systems, options=options)
-    return emit_controller(kind, checked, controller, name=check_c_name(name or kind_name),
+    return emit_controller(kind, checked, controller,
+                           name=check_c_name(kind_name if name is None else name),
                            real=real, systems=systems_record, command=command)
 
 
@@ -201,7 +202,7 @@ def export_servo_fmu(plant: Any, out: str | Path, *, plant_name: str, ts: float,
     path = check_output_path(out, option="--out")
     if path.suffix.lower() != ".fmu":
         raise InputError(f"--out {str(path)!r}: an FMU's file name ends in .fmu")
-    identifier = check_c_name(name or "servo_" + plant_name.replace("-", "_"))
+    identifier = check_c_name("servo_" + plant_name.replace("-", "_") if name is None else name)
     servo = emit_servo(plant, ts=ts, delay=delay)
     data = servo_fmu(
         servo, identifier=identifier, plant_name=plant_name,

@@ -12,6 +12,7 @@ from __future__ import annotations
 import base64
 import html
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -103,6 +104,22 @@ p.summary{font-size:1.05em;background:#f4f6fa;border-left:4px solid #4a6fa5;padd
 """
 
 
+# what HTML text may not hold (control characters but tab, line feed, form feed and carriage
+# return; lone surrogates, from file names that are not UTF-8; noncharacters)
+_NOT_HTML = re.compile("[\x00-\x08\x0b\x0e-\x1f\x7f-\x9f\ud800-\udfff\ufffe\uffff]")
+
+
+def _esc(text: object) -> str:
+    """``text`` as HTML text or a quoted attribute value: ``&``, ``<``, ``>`` and quotes
+    escaped, and the characters HTML may not hold written as ``\\xNN`` or ``\\uNNNN``, so
+    that no string from outside (a spec's name, a path, a label) adds markup or breaks the
+    file's UTF-8."""
+    def one(m: re.Match[str]) -> str:
+        o = ord(m.group(0))
+        return f"\\x{o:02x}" if o < 0x100 else f"\\u{o:04x}"
+    return html.escape(_NOT_HTML.sub(one, str(text)))
+
+
 def _fmt(value: object) -> tuple[str, bool]:
     """Cell text and whether it is numeric."""
     if isinstance(value, bool):
@@ -122,19 +139,19 @@ def _fmt(value: object) -> tuple[str, bool]:
 
 def _verdict(v: Verdict, tag: str = "span") -> str:
     cls = VERDICT_CLASSES.get(v.verdict, "")
-    text = html.escape(v.text or v.verdict)
+    text = _esc(v.text or v.verdict)
     if v.href:
-        text = f'<a href="#{html.escape(v.href)}">{text}</a>'
+        text = f'<a href="#{_esc(v.href)}">{text}</a>'
     if tag == "td":
         return f'<td class="{cls} v-{cls}">{text}</td>'
     return f'<span class="{cls}">{text}</span>'
 
 
 def _details(d: Details) -> str:
-    head = "".join(_verdict(p) if isinstance(p, Verdict) else html.escape(p)
+    head = "".join(_verdict(p) if isinstance(p, Verdict) else _esc(p)
                    for p in d.summary)
-    out = [f'<details id="{html.escape(d.anchor)}"><summary>{head}</summary>']
-    out.extend(f"<p><b>{html.escape(label)}</b> {html.escape(text)}</p>"
+    out = [f'<details id="{_esc(d.anchor)}"><summary>{head}</summary>']
+    out.extend(f"<p><b>{_esc(label)}</b> {_esc(text)}</p>"
                for label, text in d.paragraphs)
     out.extend(_table(t) for t in d.tables)
     out.append("</details>")
@@ -144,8 +161,8 @@ def _details(d: Details) -> str:
 def _table(t: Table) -> str:
     out = ["<table>"]
     if t.caption:
-        out.append(f"<caption>{html.escape(t.caption)}</caption>")
-    out.append("<tr>" + "".join(f"<th>{html.escape(str(h))}</th>" for h in t.header) + "</tr>")
+        out.append(f"<caption>{_esc(t.caption)}</caption>")
+    out.append("<tr>" + "".join(f"<th>{_esc(str(h))}</th>" for h in t.header) + "</tr>")
     for row in t.rows:
         cells = []
         for v in row:
@@ -158,7 +175,7 @@ def _table(t: Table) -> str:
                 cls = ' class="num"'
             elif text in VERDICT_CLASSES:
                 cls = f' class="{VERDICT_CLASSES[text]}"'
-            cells.append(f"<td{cls}>{html.escape(text)}</td>")
+            cells.append(f"<td{cls}>{_esc(text)}</td>")
         out.append("<tr>" + "".join(cells) + "</tr>")
     out.append("</table>")
     return "\n".join(out)
@@ -166,26 +183,26 @@ def _table(t: Table) -> str:
 
 def _figure(f: Figure) -> str:
     data = base64.b64encode(Path(f.png).read_bytes()).decode("ascii")
-    return (f'<figure><img alt="{html.escape(f.caption)}" src="data:image/png;base64,{data}">'
-            f"<figcaption>{html.escape(f.caption)}</figcaption></figure>")
+    return (f'<figure><img alt="{_esc(f.caption)}" src="data:image/png;base64,{data}">'
+            f"<figcaption>{_esc(f.caption)}</figcaption></figure>")
 
 
 def render_html(title: str, sections: Sequence[Section],
                 meta: Mapping[str, str] | None = None) -> str:
     """Render the report to one HTML string with everything embedded."""
     parts = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>",
-             f"<h1>{html.escape(title)}</h1>"]
+             f"<title>{_esc(title)}</title><style>{_CSS}</style></head><body>",
+             f"<h1>{_esc(title)}</h1>"]
     if meta:
-        parts.append("<p>" + "<br>".join(f"<b>{html.escape(k)}</b>: {html.escape(v)}"
+        parts.append("<p>" + "<br>".join(f"<b>{_esc(k)}</b>: {_esc(v)}"
                                          for k, v in meta.items()) + "</p>")
     for s in sections:
-        parts.append(f"<h2>{html.escape(s.title)}</h2>")
+        parts.append(f"<h2>{_esc(s.title)}</h2>")
         if s.summary:
-            parts.append(f'<p class="summary">{html.escape(s.summary)}</p>')
-        parts.extend(f"<p>{html.escape(p)}</p>" for p in s.paragraphs)
+            parts.append(f'<p class="summary">{_esc(s.summary)}</p>')
+        parts.extend(f"<p>{_esc(p)}</p>" for p in s.paragraphs)
         if s.items:
-            parts.append("<ul>" + "".join(f"<li>{html.escape(i)}</li>" for i in s.items)
+            parts.append("<ul>" + "".join(f"<li>{_esc(i)}</li>" for i in s.items)
                          + "</ul>")
         parts.extend(_table(t) for t in s.tables)
         parts.extend(_details(d) for d in s.details)

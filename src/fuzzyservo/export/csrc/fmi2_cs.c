@@ -1,5 +1,7 @@
 /* Message buffer size and phases of an instance, for the model code below. */
-#define FSM_MSG 256
+#include <float.h>
+
+#define FSM_MSG 320
 
 enum { FSM_INSTANTIATED, FSM_INIT, FSM_STEP, FSM_TERMINATED, FSM_ERROR };
 
@@ -19,8 +21,10 @@ enum { FSM_INSTANTIATED, FSM_INIT, FSM_STEP, FSM_TERMINATED, FSM_ERROR };
  *   static int  fsm_get(const struct fsm_model *m, unsigned vr, double *v);
  *   static int  fsm_initialize(struct fsm_model *m, double t0, char *msg);
  *   static int  fsm_do_step(struct fsm_model *m, double t, double h, char *msg);
+ *   static double fsm_elapsed(const struct fsm_model *m);  time since t0 as the model
+ *                                      counts it (its samples, not a master's sum of t + h)
  *   #define FSM_TS ts                  the sample time [s] (steps start where the last ended,
- *                                      within 1e-6 ts)
+ *                                      within fsm_time_tol)
  *
  * Each returns 0 on success; otherwise it writes a one-line reason into msg (FSM_MSG bytes)
  * and the wrapper logs it and returns fmi2Error. Phases: 0 instantiated, 1 initialisation
@@ -44,7 +48,16 @@ typedef struct {
     char *name;
     int logging;
     double t0;
+    int stop_defined; /* fmi2SetupExperiment's stopTime, which no step may pass */
+    double stop;
 } fsm_instance;
+
+/* How far apart two times a master computed differently may be and still be one: 1e-6 ts
+ * and the rounding of |t| (a master's t0 + n h against its t + h). */
+static double fsm_time_tol(double t)
+{
+    return 1e-6 * FSM_TS + 8.0 * DBL_EPSILON * fabs(t);
+}
 
 static void fsm_log(fsm_instance *inst, fmi2Status status, const char *category,
                     const char *msg)
@@ -138,6 +151,8 @@ FMI2_Export fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuT
     inst->cb = *functions;
     inst->logging = loggingOn != fmi2False;
     inst->t0 = 0.0;
+    inst->stop_defined = 0;
+    inst->stop = 0.0;
     inst->now.time = 0.0;
     inst->now.phase = FSM_INSTANTIATED;
     fsm_defaults(&inst->now.m);
@@ -161,14 +176,21 @@ FMI2_Export fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranc
                                            fmi2Boolean stopTimeDefined, fmi2Real stopTime)
 {
     fsm_instance *inst = (fsm_instance *)c;
+    char msg[FSM_MSG];
     (void)toleranceDefined;
     (void)tolerance;
-    (void)stopTimeDefined;
-    (void)stopTime;
     if (inst == NULL || !fsm_phase_ok(inst, "fmi2SetupExperiment", 1u << FSM_INSTANTIATED)) {
         return fmi2Error;
     }
+    if (!isfinite(startTime) || (stopTimeDefined && !(stopTime >= startTime
+                                                       && stopTime <= DBL_MAX))) {
+        sprintf(msg, "fmi2SetupExperiment: the start time (%g s) must be finite and a stop "
+                "time (%g s) finite and >= it", startTime, stopTime);
+        return fsm_fail(inst, msg);
+    }
     inst->t0 = startTime;
+    inst->stop_defined = stopTimeDefined != fmi2False;
+    inst->stop = stopTime;
     inst->now.time = startTime;
     return fmi2OK;
 }
@@ -217,6 +239,8 @@ FMI2_Export fmi2Status fmi2Reset(fmi2Component c)
         return fmi2Error;
     }
     inst->t0 = 0.0;
+    inst->stop_defined = 0;
+    inst->stop = 0.0;
     inst->now.time = 0.0;
     inst->now.phase = FSM_INSTANTIATED;
     fsm_defaults(&inst->now.m);
@@ -485,6 +509,7 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunication
 {
     fsm_instance *inst = (fsm_instance *)c;
     char msg[FSM_MSG];
+    double end, counted;
     (void)noSetFMUStatePriorToCurrentPoint;
     if (inst == NULL || !fsm_phase_ok(inst, "fmi2DoStep", 1u << FSM_STEP)) {
         return fmi2Error;
@@ -495,9 +520,23 @@ FMI2_Export fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunication
                 "step >= 0", currentCommunicationPoint, communicationStepSize);
         return fsm_fail(inst, msg);
     }
-    if (fabs(currentCommunicationPoint - inst->now.time) > 1e-6 * FSM_TS) {
+    if (fabs(currentCommunicationPoint - inst->now.time) > fsm_time_tol(inst->now.time)) {
         sprintf(msg, "fmi2DoStep: a step must start where the last one ended, at t = %.17g s, "
                 "not at %.17g s", inst->now.time, currentCommunicationPoint);
+        return fsm_fail(inst, msg);
+    }
+    /* FMI 2.0: past a defined stop time, fmi2Error. The end of the step is the earlier of
+     * the master's t + h and the model's count of samples (either may carry the master's
+     * rounding), within fsm_time_tol. */
+    end = currentCommunicationPoint + communicationStepSize;
+    counted = inst->t0 + fsm_elapsed(&inst->now.m) + communicationStepSize;
+    if (counted < end) {
+        end = counted;
+    }
+    if (inst->stop_defined && end > inst->stop + fsm_time_tol(inst->stop)) {
+        sprintf(msg, "fmi2DoStep: the step from t = %.17g s to %.17g s passes the stop time "
+                "%.17g s given to fmi2SetupExperiment", currentCommunicationPoint,
+                currentCommunicationPoint + communicationStepSize, inst->stop);
         return fsm_fail(inst, msg);
     }
     msg[0] = '\0';
