@@ -173,24 +173,33 @@ def test_an_invalid_value_shows_the_cli_line(page: Page) -> None:
 def test_stale_requests_are_dropped_and_the_last_is_shown(page: Page) -> None:
     # runs of 20 s on the nonlinear plant (several ms each), edits 1 ms apart: faster than
     # the runs, as a fast drag sends them (one message each: edits made in one task of the
-    # browser's would reach the server as one)
+    # browser's would reach the server as one). Synchronised on conditions, not on time:
+    # the page is done when it shows the run of the last edit's gains (its metrics are the
+    # command's), and every request is then accounted for. How many are dropped depends on
+    # how the edits and the runs interleave (on the machine's load), so it is not asserted
+    # here: tests/app/test_latest.py holds the dropping to its counts deterministically.
     change(page, "fs-plant", "nonlinear")
     first = change(page, "fs-duration", 20.0)
-    page.js("const m = fs.model('fs-gain-kdu');"
-            "for (let i = 1; i <= 40; i++) setTimeout(() => { m.value = 0.02 + 0.0002 * i; },"
-            " i);")
-    settle(page, quiet=1.0)
+    last = 0.02 + 0.0002 * 40
+    done = cli("simulate", "--plant", "nonlinear", "--controller", "stfpi", "--gains",
+               f"ke={float(page.value('fs-gain-ke'))!r},kde={float(page.value('fs-gain-kde'))!r},"
+               f"kdu={last!r}", "--reference", "step:0.1", "--duration", "20", "--metrics")
+    assert done.returncode == 0, done.stderr
+    want = shown_metrics(done.stdout)
+    assert page.metrics() != want
+    page.js("const m = fs.model('fs-gain-kdu'); window.fs_edits = 0;"
+            "for (let i = 1; i <= 40; i++) setTimeout(() => {"
+            " m.value = 0.02 + 0.0002 * i; window.fs_edits++; }, i);")
+    page.wait(lambda: page.js("return window.fs_edits") == 40, 60, "the 40 edits")
+    assert page.value("fs-gain-kdu") == last
+    page.wait(lambda: page.metrics() == want, 120, "the run of the last edit")
     status = page.status()
     seq, ran, dropped = (int(x) for x in re.search(
         r"request (\d+): run .* (\d+) runs, (\d+) stale", status).groups())
-    assert page.value("fs-gain-kdu") == 0.02 + 0.0002 * 40
     # the edits reached the server as requests (Panel merges those that arrive together),
-    # and those made stale before their run were dropped
-    assert seq - first >= 2 and dropped > 0 and ran < seq, status
-    done = cli("simulate", "--plant", "nonlinear", "--controller", "stfpi", "--gains",
-               gains_shown(page, ("ke", "kde", "kdu")), "--reference", "step:0.1",
-               "--duration", "20", "--metrics")
-    assert page.metrics() == shown_metrics(done.stdout)  # the last edit is the one shown
+    # and each request since the page opened was either run or dropped before its run
+    assert seq > first and seq == ran + dropped, status
+    assert page.value("fs-gain-kdu") == last  # the last edit is the one shown
 
 
 def test_the_tuner_runs_in_the_page_and_loads_its_gains(page: Page, tmp_path: Path) -> None:
