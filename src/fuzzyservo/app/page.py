@@ -35,6 +35,7 @@ from bokeh.plotting import figure
 
 from ..analysis.step_metrics import METRIC_UNITS as UNITS
 from ..errors import FuzzyServoError, InputError, UsageError, error_chain
+from ..formats.io import MAX_BYTES
 from ..paper.published import SET_NAMES, named_set
 from ..registry import (
     controller_colour,
@@ -83,10 +84,14 @@ REFERENCE_EXAMPLES: dict[str, str] = {
 _LIVE_COLOUR = "#000000"
 
 
+#: Largest fuzzy-system file the page takes [bytes]: the file readers' limit, the command's.
+MAX_UPLOAD_BYTES = MAX_BYTES
+
+
 def upload_name(filename: str | None, size: int) -> str:
     """The name under which an uploaded fuzzy-system file is kept: the browser's name of it,
     a plain file name with a .fis, .fcl or .fll extension, at most
-    :data:`~fuzzyservo.app.server.MAX_UPLOAD_BYTES` long (the command's readers' limit).
+    :data:`MAX_UPLOAD_BYTES` long (the command's readers' limit).
 
     Raises
     ------
@@ -94,7 +99,6 @@ def upload_name(filename: str | None, size: int) -> str:
         A name that is not a plain file name, another extension, or a file too large.
     """
     from ..formats import format_of
-    from .server import MAX_UPLOAD_BYTES
 
     name = os.path.basename(filename or "")
     if name in ("", ".", "..") or any(ord(c) < 32 or c == "\x7f" for c in name):

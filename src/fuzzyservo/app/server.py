@@ -15,17 +15,14 @@ from typing import Any
 from ..formats.io import MAX_BYTES
 from .access import Access, Admit, Refuse
 
-__all__ = ["MAX_UPLOAD_BYTES", "WEBSOCKET_MAX_MESSAGE_BYTES", "serve"]
+__all__ = ["WEBSOCKET_MAX_MESSAGE_BYTES", "serve"]
 
 log = logging.getLogger(__name__)
 
-#: Largest fuzzy-system file the page takes [bytes]: the file readers' limit, the CLI's
-#: (:data:`fuzzyservo.formats.io.MAX_BYTES`).
-MAX_UPLOAD_BYTES = MAX_BYTES
-
-#: Largest message the page's WebSocket takes [bytes]: an upload of :data:`MAX_UPLOAD_BYTES`
-#: in base64 (4/3) with 1 MiB for the message around it; a larger one closes the connection.
-WEBSOCKET_MAX_MESSAGE_BYTES = 4 * (MAX_UPLOAD_BYTES + 2) // 3 + 1024 * 1024
+#: Largest message the page's WebSocket takes [bytes]: an upload of the file readers' limit
+#: (:data:`fuzzyservo.formats.io.MAX_BYTES`, the page's ``MAX_UPLOAD_BYTES``) in base64 (4/3)
+#: with 1 MiB for the message around it; a larger one closes the connection.
+WEBSOCKET_MAX_MESSAGE_BYTES = 4 * (MAX_BYTES + 2) // 3 + 1024 * 1024
 
 
 def _open(url: str) -> None:
