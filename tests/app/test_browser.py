@@ -340,3 +340,39 @@ def test_a_fuzzy_system_from_a_file_runs_as_the_command_with_that_file(page: Pag
     page.wait(lambda: "paper-du.fis" in page.js(
         "return Array.from(Bokeh.index.all_views()).map(v => v.model.text || '').join(' ')"),
         30, "the file's system in the tab")
+
+
+def test_an_upload_over_the_readers_limit_or_of_another_kind_is_one_line(
+        page: Page, tmp_path: Path) -> None:
+    from fuzzyservo.formats.io import MAX_BYTES
+
+    change(page, "fs-controller", "fpi")
+
+    def upload(path: Path) -> str:
+        """Choose ``path`` in the systems tab; the error line the response tab then shows
+        (the tabs' contents are made when shown: read each on its own tab)."""
+        before = page.js("const m = fs.model('fs-error'); return m ? m.text : null;")
+        page.show_tab(2)
+        field = page.wait(lambda: page.js(
+            "const v = fs.view('fs-du-file');"
+            "return v ? v.shadow_el.querySelector('input[type=file]') : null;"), 20,
+            "the input")
+        field.send_keys(str(path))
+        page.show_tab(0)
+        return str(page.wait(lambda: page.js(
+            "const m = fs.model('fs-error'); return m ? m.text : null;") != before
+            and page.error(), 120, f"the error line of {path.name}"))
+
+    source = Path(__file__).resolve().parents[2] / "src/fuzzyservo/data/systems/paper-du.fis"
+    other = tmp_path / "du.txt"
+    other.write_bytes(source.read_bytes())
+    assert upload(other) == ("fuzzyservo: error: cannot tell the format of 'du.txt' from its "
+                             "extension: use .fis, .fcl or .fll")
+    # one byte over the command's limit: the page's WebSocket takes it (in base64, larger
+    # than Bokeh's default 20 MB message) and the page refuses it before keeping it
+    big = tmp_path / "big.fis"
+    big.write_bytes(b"%" * (MAX_BYTES + 1))
+    assert upload(big) == (f"fuzzyservo: error: uploaded file big.fis: {MAX_BYTES + 1} bytes "
+                           f"is larger than the {MAX_BYTES}-byte limit")
+    assert "--du-system" not in page.value("fs-command")  # still the paper's system
+    assert "Traceback" not in page.js("return document.body.innerText")
