@@ -96,7 +96,9 @@ def upload_name(filename: str | None, size: int) -> str:
     Raises
     ------
     InputError
-        A name that is not a plain file name, another extension, or a file too large.
+        A name that is not a plain file name, or a file too large.
+    ParameterError
+        Another extension (the readers' own line).
     """
     from ..formats import format_of
 
