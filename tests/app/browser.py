@@ -70,8 +70,10 @@ def require_browser() -> None:
 
 
 @contextlib.contextmanager
-def app_server(*args: str, timeout: float = 120.0) -> Iterator[str]:
-    """Start ``fuzzyservo app --no-browser`` on a free port; yield its URL; stop it."""
+def app_server(*args: str, timeout: float = 120.0,
+               log: list[str] | None = None) -> Iterator[str]:
+    """Start ``fuzzyservo app --no-browser`` on a free port; yield its URL (once it listens:
+    the command prints it then); stop it. ``log`` gets the lines it printed."""
     port = free_port()
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     exe = shutil.which("fuzzyservo", path=str(Path(sys.executable).parent)) or "fuzzyservo"
@@ -101,6 +103,9 @@ def app_server(*args: str, timeout: float = 120.0) -> Iterator[str]:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        if log is not None:
+            log.extend(lines)
+            log.extend(proc.stdout.read().splitlines(keepends=True))
 
 
 class Page:

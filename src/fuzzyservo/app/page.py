@@ -35,6 +35,7 @@ from bokeh.plotting import figure
 
 from ..analysis.step_metrics import METRIC_UNITS as UNITS
 from ..errors import FuzzyServoError, InputError, UsageError, error_chain
+from ..formats.io import MAX_BYTES
 from ..paper.published import SET_NAMES, named_set
 from ..registry import (
     controller_colour,
@@ -81,6 +82,34 @@ REFERENCE_EXAMPLES: dict[str, str] = {
 }
 
 _LIVE_COLOUR = "#000000"
+
+
+#: Largest fuzzy-system file the page takes [bytes]: the file readers' limit, the command's.
+MAX_UPLOAD_BYTES = MAX_BYTES
+
+
+def upload_name(filename: str | None, size: int) -> str:
+    """The name under which an uploaded fuzzy-system file is kept: the browser's name of it,
+    a plain file name with a .fis, .fcl or .fll extension, at most
+    :data:`MAX_UPLOAD_BYTES` long (the command's readers' limit).
+
+    Raises
+    ------
+    InputError
+        A name that is not a plain file name, or a file too large.
+    ParameterError
+        Another extension (the readers' own line).
+    """
+    from ..formats import format_of
+
+    name = os.path.basename(filename or "")
+    if name in ("", ".", "..") or any(ord(c) < 32 or c == "\x7f" for c in name):
+        raise InputError(f"uploaded file {filename!r}: not a file name")
+    format_of(name)  # the reader's line for another extension
+    if size > MAX_UPLOAD_BYTES:
+        raise InputError(f"uploaded file {name}: {size} bytes is larger than the "
+                         f"{MAX_UPLOAD_BYTES}-byte limit")
+    return name
 
 
 def gain_range(controller: str, name: str, step: float) -> tuple[float, float, bool]:
@@ -972,12 +1001,20 @@ class ServoPage:
         data: bytes | None = event.new
         if not data:
             return
-        name = os.path.basename(w.filename or f"{role}.fis")
+        try:
+            name = upload_name(w.filename, len(data))
+        except FuzzyServoError as exc:
+            with contextlib.suppress(Exception):
+                w.clear()
+            self._show_error(exc)
+            return
         digest = hashlib.sha256(data).hexdigest()[:12]
         folder = self.workdir / "systems" / digest
         folder.mkdir(parents=True, exist_ok=True)
         path = folder / name
         path.write_bytes(data)
+        # the run and the systems tab read it with the command's reader (formats.read_system,
+        # through run.load_systems): the same size, nesting and point limits
         self.systems[role] = str(path)
         with contextlib.suppress(Exception):  # the same file may be chosen again later
             w.clear()

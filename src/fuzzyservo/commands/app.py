@@ -34,8 +34,10 @@ def register(subparsers: Any) -> None:
     p.add_argument("--no-browser", dest="browser", action="store_false",
                    help="print the page's address instead of opening it in a browser")
     p.add_argument("--host", default="127.0.0.1", metavar="ADDRESS",
-                   help="address to listen on (default 127.0.0.1: this machine only); "
-                        "another lets other machines run the simulator, with a warning")
+                   help="address to listen on (default 127.0.0.1: this machine only; any "
+                        "loopback address or name, e.g. localhost, is this machine only too); "
+                        "another, e.g. 0.0.0.0 for every interface, serves other machines, with "
+                        "a warning and a secret token in the page's address")
     p.set_defaults(handler=run)
 
 
@@ -46,39 +48,43 @@ def run(args: argparse.Namespace) -> int:
     if args.param_set not in SET_NAMES:
         raise ParameterError(f"--set {args.param_set!r}: unknown parameter set; allowed: "
                              f"{', '.join(SET_NAMES)}")
-    if ":" in args.host:
-        raise ParameterError(f"--host {args.host}: an IPv6 address cannot be served (Bokeh's "
-                             f"server checks the page's origin by host:port); give an IPv4 "
-                             f"address or a name, e.g. 127.0.0.1")
+    from ..app.access import access_for
+
+    access = access_for(args.host, args.port)
     try:
         import panel  # noqa: F401
     except ImportError:
         raise InputError("the page needs Panel: pip install 'fuzzyservo[app]'") from None
-    from ..app.server import LOCAL_HOSTS, serve
+    from ..app.server import serve
 
-    if args.host not in LOCAL_HOSTS:
+    if not access.local:
         print(f"fuzzyservo: warning: --host {args.host}: the page is served to other "
-              f"machines, with no password; anyone who reaches port {args.port} can run "
-              f"the simulator and the tuner here", file=sys.stderr, flush=True)
-    _port_free(args.host, args.port)
+              f"machines; it answers only requests with the token of the address printed "
+              f"below, and whoever has that address can run the simulator and the tuner here "
+              f"(plain HTTP: the network between can read it)", file=sys.stderr, flush=True)
+    _port_free(access.host, args.port)
     try:
-        serve(port=args.port, host=args.host, param_set=args.param_set,
-              open_browser=args.browser)
+        serve(access, param_set=args.param_set, open_browser=args.browser)
     except KeyboardInterrupt:
-        print("fuzzyservo app: stopped", file=sys.stderr)
-        return 0
+        pass
+    print("fuzzyservo app: stopped", file=sys.stderr)
     return 0
 
 
 def _port_free(host: str, port: int) -> None:
-    """One line, status 2, when the port is taken (Tornado would end in a traceback)."""
+    """One line, status 2, when the port is taken or the address is not this machine's
+    (Tornado would end in a traceback)."""
+    import errno
     import socket
 
-    family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    with socket.socket(family, socket.SOCK_STREAM) as s:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             s.bind((host, port))
         except OSError as exc:
+            if exc.errno == errno.EADDRNOTAVAIL:
+                raise InputError(f"--host {host}: not an address of this machine "
+                                 f"({exc.strerror}); give one of its addresses, 127.0.0.1 "
+                                 f"or 0.0.0.0 (every interface)") from None
             raise InputError(f"--port {port}: cannot listen on {host}:{port} "
-                             f"({exc.strerror}); give another --port") from None
+                             f"({exc.strerror or exc}); give another --port") from None
