@@ -57,6 +57,7 @@ def wait_for_temporary(folder: Path, pattern: str, proc: subprocess.Popen[str]) 
     while proc.poll() is None:
         if any(folder.glob(pattern)):
             return True
+        # sleep: polling the folder (the stdlib has no file-creation event to wait on)
         time.sleep(0.002)
     return False
 
