@@ -7,8 +7,12 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from types import FrameType
+from typing import Any, TypeVar
+
+T = TypeVar("T")
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -53,5 +57,42 @@ def wait_for_temporary(folder: Path, pattern: str, proc: subprocess.Popen[str]) 
     while proc.poll() is None:
         if any(folder.glob(pattern)):
             return True
+        # sleep: polling the folder (the stdlib has no file-creation event to wait on)
         time.sleep(0.002)
     return False
+
+
+class WorkExceeded(AssertionError):
+    """More Python lines ran than a :func:`count_lines` budget allows."""
+
+
+def count_lines(fn: Callable[..., T], *args: Any, limit: int | None = None) -> tuple[T, int]:
+    """``fn(*args)`` and the number of Python lines it executed (``sys.settrace`` line events
+    in every frame it runs, the standard library's included).
+
+    The count is the work done, the same on any machine and under any load: tests compare
+    counts, never wall-clock times (docs/testing.md). Lines of C (``list.index``, a regular
+    expression's scan) are not counted; a loop written in Python is, once per iteration.
+    With ``limit``, :class:`WorkExceeded` is raised as soon as more than ``limit`` lines ran
+    (a runaway reader stops there instead of running on). A tracer already installed (a
+    coverage run's) is put back afterwards."""
+    count = 0
+
+    def local(frame: FrameType, event: str, arg: object) -> Any:
+        nonlocal count
+        if event == "line":
+            count += 1
+            if limit is not None and count > limit:
+                raise WorkExceeded(f"more than {limit} Python lines ran")
+        return local
+
+    def calls(frame: FrameType, event: str, arg: object) -> Any:
+        return local
+
+    previous = sys.gettrace()
+    sys.settrace(calls)
+    try:
+        result = fn(*args)
+    finally:
+        sys.settrace(previous)
+    return result, count

@@ -295,6 +295,7 @@ def _run_app(block: Block, words: list[str], scratch: Path) -> str:
             if opened.exists() and opened.read_text():
                 break
             assert proc.poll() is None, f"README line {block.line}: {proc.communicate()}"
+            # sleep: polling for the stand-in browser's file (no file-creation event)
             time.sleep(0.1)
         url = opened.read_text()
         assert url.startswith("http://127.0.0.1:"), url

@@ -151,6 +151,8 @@ class Page:
                 return value
             if time.monotonic() > deadline:
                 raise TimeoutError(f"timed out waiting for {what or cond}")
+            # sleep: the condition is the page's state read by script; the driver has no
+            # event for an arbitrary predicate, so it is polled until the deadline
             time.sleep(0.02)
 
     # -- reading

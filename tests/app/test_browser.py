@@ -56,6 +56,7 @@ def settle(page: Page, quiet: float = 0.6, timeout: float = 30.0) -> int:
     deadline = time.monotonic() + timeout
     last, since = page.run_number(), time.monotonic()
     while time.monotonic() < deadline:
+        # sleep: polling the run shown; 'no redraw for `quiet` s' has no event to wait on
         time.sleep(0.05)
         n = page.run_number()
         if n != last:
@@ -242,6 +243,7 @@ def test_no_request_leaves_the_local_server(page: Page) -> None:
     change(page, "fs-controller", "stfpi")
     for tab in (1, 2, 3, 0):  # the tuner, the fuzzy systems (figures), the downloads
         page.show_tab(tab)
+        # sleep: the test looks for requests a tab might make; their absence has no event
         time.sleep(0.5)
     page.wait(lambda: page.js("return fs.view('fs-dl-gains') !== null"), 20, "the tabs")
     origin = urlparse(page.url).netloc

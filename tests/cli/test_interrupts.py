@@ -111,6 +111,7 @@ def _kill_and_check(sig: int, n: int, seed: int, tmp_path: Path) -> list[int]:
         proc = _start([*LONG, "--out", "keep.csv"], work)
         assert _wait_for_write(work, proc)
         t0 = time.perf_counter()
+        # sleep: a random point inside the write is the test's input, not a wait
         time.sleep(rng.uniform(0.0, 1.0) * write_time)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=120)
@@ -155,12 +156,14 @@ def test_sigterm_ends_a_compiled_run_at_once(tmp_path: Path) -> None:
     a write SIGTERM keeps its default action."""
     proc = _start(["simulate", "--plant", "nonlinear", "--controller", "p", "--gains", "kp=10",
                    "--substep", "4e-8", "--duration", "2", "--out", "x.csv"], tmp_path)
-    time.sleep(4.0)  # start-up done, inside the 5e7 RK4 steps
-    t0 = time.perf_counter()
+    # sleep: start-up done, inside the 5e7 RK4 steps; nothing marks the loop's start (with
+    # a warm cache the run prints nothing), so the test waits past the start-up
+    time.sleep(4.0)
     proc.send_signal(signal.SIGTERM)
     proc.communicate(timeout=120)
+    # killed by the signal itself: a Python handler would have let the compiled loop finish
+    # and exited with 143 (128 + 15); no clock needed (issue 29: no wall-clock assertions)
     assert proc.returncode == -signal.SIGTERM
-    assert time.perf_counter() - t0 < 1.0
     assert not (tmp_path / "x.csv").exists()
 
 
@@ -169,6 +172,7 @@ def test_sigterm_rolls_back_the_write_and_says_so(tmp_path: Path) -> None:
     keep.write_text("t,y\n0,0\n")
     proc = _start([*LONG, "--out", "keep.csv"], tmp_path)
     assert _wait_for_write(tmp_path, proc)
+    # sleep: a moment into the write that just began (its temporary file is the event)
     time.sleep(0.05)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
@@ -186,6 +190,7 @@ def test_ctrl_c_during_start_up_is_one_line(tmp_path: Path, delay: float) -> Non
     (docs/guarantees.md)."""
     proc = _start(["tune", "--controller", "stfpi", "--plant", "linear", "--quiet",
                    "--out", "g.toml"], tmp_path)
+    # sleep: the moment of the start-up to interrupt is the test's parameter
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
@@ -213,6 +218,7 @@ def test_ctrl_c_swallowed_by_a_finalizer_still_stops_the_run(
         assert ref() is None
         deadline = time.perf_counter() + 5.0
         while time.perf_counter() < deadline:  # the interruption must arrive in here
+            # sleep: Python runs a signal handler between bytecodes; the loop gives it some
             time.sleep(0.001)
         return 0
 
@@ -238,7 +244,9 @@ def test_ctrl_c_just_after_the_work_is_done_does_not_kill_the_process(tmp_path: 
     for i in range(6):
         proc = _start([*SHORT, "--out", "keep.csv"], tmp_path)
         while proc.poll() is None and not (tmp_path / "keep.csv").exists():
+            # sleep: polling for the output file (the stdlib has no file-creation event)
             time.sleep(0.001)
+        # sleep: 0-10 ms after the output appeared is the moment the test is about
         time.sleep(0.002 * i)
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=120)

@@ -193,6 +193,7 @@ def _kill_reproduce(sig: int, n: int, seed: int, tmp_path: Path) -> list[tuple[i
     for i in range(n):
         proc = start_fuzzyservo(configs[i % 2])
         assert wait_for_temporary(out, ".*.tmp", proc)
+        # sleep: a random point inside the writes is the test's input, not a wait
         time.sleep(rng.uniform(0.0, 1.0) * write_time)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=300)

@@ -236,7 +236,9 @@ def _kill_when_started(argv: list[str], out: Path, seed: int) -> bool:
         while time.monotonic() < deadline and proc.poll() is None:
             if (out / "chunks").is_dir() and any((out / "chunks").glob("chunk-*.parquet")):
                 break
+            # sleep: polling for the first chunk file (no file-creation event in the stdlib)
             time.sleep(0.005)
+        # sleep: a random moment of the running sweep is the test's input, not a wait
         time.sleep(rng.uniform(0.0, 0.3))
     finally:
         killed = proc.poll() is None
@@ -443,6 +445,7 @@ def test_sigkill_while_the_pool_starts_leaves_no_worker(kill_spec: tuple[Path, s
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
     while not (out / "manifest.json").is_file() and time.monotonic() < deadline:
+        # sleep: polling for the manifest (no file-creation event in the stdlib)
         time.sleep(0.002)
     os.kill(proc.pid, signal.SIGKILL)  # the workers are being spawned, not yet serving
     # the workers hold the command's output pipes: they close once every worker has ended
