@@ -43,9 +43,10 @@ ALLOWED: dict[str, set[str]] = {
     "_entry": {"cli"},  # the entry point: catches Ctrl-C while the CLI is imported
     "__main__": {"_entry"},
 }
-# free for every layer: errors and typing, atomic I/O, the compiled core's decorator, cache
-# and notice (numba only), the version; the package's __init__ (its public names)
-ALWAYS = {"errors", "_typing", "_io", "_jit", "__version__", "__init__"}
+# free for every layer: errors and typing, atomic I/O, the public API's argument checks, the
+# compiled core's decorator, cache and notice (numba only), the version; the package's
+# __init__ (its public names)
+ALWAYS = {"errors", "_typing", "_io", "_args", "_jit", "__version__", "__init__"}
 
 
 def _units() -> set[str]:

@@ -17,8 +17,14 @@ import numpy as np
 import pytest
 
 from fuzzyservo._io import (
+    MAX_INPUT_BYTES,
+    MAX_NESTING,
     atomic_write,
     check_output_path,
+    open_input,
+    parse_json,
+    parse_toml,
+    read_bytes,
     read_text,
     strict_json,
     write_text_atomic,
@@ -243,3 +249,84 @@ def test_several_files_are_written_as_one(tmp_path: Path, monkeypatch: pytest.Mo
         signal.signal(signal.SIGINT, previous)
     assert (a.read_text(), b.read_text()) == ("new c", "new h") and len(done) == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.c", "x.h"]  # no temporaries
+
+
+# --------------------------------------------- issue 29: bounded reads and bounded nesting
+
+
+def test_a_fifo_without_a_writer_is_refused_without_blocking(tmp_path: Path) -> None:
+    """In a child process with a timeout: a read that blocked would fail the test."""
+    fifo = tmp_path / "spec.toml"
+    os.mkfifo(fifo)
+    code = ("from fuzzyservo._io import read_text\nfrom fuzzyservo.errors import InputError\n"
+            f"try:\n    read_text({str(fifo)!r}, 'sweep spec')\n"
+            "except InputError as e:\n    print(e)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, check=True)
+    assert proc.stdout == (f"sweep spec '{fifo}' is a FIFO (named pipe), not a regular file; "
+                           f"give a file\n")
+
+
+@pytest.mark.parametrize(("path", "kind"), [("/dev/zero", "a character device"),
+                                            ("/dev/null", "a character device"),
+                                            (".", "a folder")])
+def test_only_regular_files_are_read(path: str, kind: str) -> None:
+    with pytest.raises(InputError, match=re.escape(f"file '{path}' is {kind}, not a regular")):
+        read_bytes(path)
+
+
+def test_reads_are_bounded(tmp_path: Path) -> None:
+    f = tmp_path / "f.txt"
+    f.write_bytes(b"x" * 10)
+    assert read_bytes(f, limit=10) == b"x" * 10
+    assert read_text(f, limit=10) == "x" * 10
+    with pytest.raises(InputError, match=f"^spec '{re.escape(str(f))}' is larger than the "
+                                         f"9-byte limit of an input file$"):
+        read_bytes(f, "spec", limit=9)
+    assert MAX_INPUT_BYTES == 16 * 1024 * 1024
+    with open_input(f) as fh:
+        assert fh.read() == b"x" * 10
+
+
+def _nested_toml(depth: int) -> str:
+    return "a = " + "[" * depth + "]" * depth + "\n"
+
+
+def test_toml_nesting_is_bounded_before_parsing() -> None:
+    assert MAX_NESTING == 64
+    value = parse_toml(_nested_toml(64), "t")["a"]
+    for _ in range(63):
+        (value,) = value
+    assert value == []
+    for text in (_nested_toml(65), _nested_toml(5000),
+                 "a = " + "{b = " * 5000 + "1" + "}" * 5000,
+                 "a" + ".b" * 65 + " = 1",
+                 "[" + ".".join(["t"] * 5000) + "]\nx = 1"):
+        with pytest.raises(InputError, match=r"^spec 's.toml' nests .*more than 64 levels"):
+            parse_toml(text, "spec 's.toml'")
+
+
+def test_brackets_in_toml_strings_and_comments_do_not_count() -> None:
+    deep = "[" * 5000
+    text = (f'a = "{deep}"\nb = \'{deep}\'\nc = """\n{deep}\n"""\nd = \'\'\'{deep}\'\'\'\n'
+            f'# {deep}\ne = "\\"{deep}"\n[t]\nf = [[1, 2], {{g = [3]}}]\n')
+    doc = parse_toml(text, "t")
+    assert doc["a"] == doc["b"] == doc["d"] == deep and doc["c"] == deep + "\n"
+    assert doc["e"] == '"' + deep and doc["t"] == {"f": [[1, 2], {"g": [3]}]}
+
+
+def test_toml_errors_are_one_line() -> None:
+    with pytest.raises(InputError, match=r"^gains file 'g.toml' is not valid TOML: [^\n]+$"):
+        parse_toml("a = [\n\n", "gains file 'g.toml'")
+
+
+def test_json_nesting_is_bounded_before_parsing() -> None:
+    assert parse_json("[" * 64 + "]" * 64, "j") is not None
+    assert parse_json('{"a": "' + "[" * 5000 + '", "b": [1, {"c": 2}]}', "j")["b"] == [
+        1, {"c": 2}]
+    for text in ("[" * 65 + "]" * 65, "[" * 5000 + "]" * 5000, '{"a": ' * 5000 + "1" +
+                 "}" * 5000):
+        with pytest.raises(InputError, match=r"^manifest 'm.json' nests .*more than 64"):
+            parse_json(text, "manifest 'm.json'")
+    with pytest.raises(InputError, match=r"^j is not valid JSON: Expecting"):
+        parse_json("[1,", "j")

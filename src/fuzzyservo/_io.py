@@ -10,6 +10,13 @@ Guarantees (docs/guarantees.md):
   target's. A symbolic link is followed (the file it points at is replaced, the link kept);
   a target that is not a regular file (``/dev/null``, a FIFO) is written directly.
 - :func:`read_text` refuses bytes that are not UTF-8 with the file name and the byte offset.
+- Every input file is opened by :func:`open_input`: a regular file only (a FIFO, a device, a
+  folder is refused on one line; a FIFO without a writer does not block), and a file read
+  whole (:func:`read_bytes`, :func:`read_text`) is read with a bounded read, at most
+  :data:`MAX_INPUT_BYTES` (a device or a file still growing cannot make it read for ever).
+- :func:`parse_toml` and :func:`parse_json` bound the nesting of arrays and tables to
+  :data:`MAX_NESTING` levels before parsing (both parsers recurse) and after (TOML's dotted
+  keys nest without brackets).
 - :func:`strict_json` writes NaN and infinities as ``null``: strict JSON parsers reject the
   ``NaN``/``Infinity`` tokens Python's ``json`` emits by default.
 """
@@ -22,22 +29,30 @@ import io
 import json
 import math
 import os
+import re
 import signal
+import stat
 import tempfile
 import threading
 import zipfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from typing import IO, Any, Literal, overload
+from typing import IO, Any, BinaryIO, Literal, overload
 
 from .errors import InputError, OutputError
 
 __all__ = [
+    "MAX_INPUT_BYTES",
+    "MAX_NESTING",
     "Terminated",
     "atomic_write",
     "check_output_path",
     "fsync_folder",
     "npz_inflation",
+    "open_input",
+    "parse_json",
+    "parse_toml",
+    "read_bytes",
     "read_text",
     "sha256_file",
     "strict_json",
@@ -75,6 +90,27 @@ def _describe(exc: OSError) -> str:
     return exc.strerror or type(exc).__name__
 
 
+_STREAM = re.compile(r"/dev/(?:stdin|stdout|stderr|fd/\d+)|/proc/(?:self|thread-self|\d+)"
+                     r"(?:/task/\d+)?/fd/\d+")
+
+
+def _standard_stream(p: Path) -> bool:
+    """Whether ``p`` names one of the process's open descriptors (``/dev/stdout``,
+    ``/dev/fd/1``, ``/proc/self/fd/1``), directly or through symbolic links. Written as a
+    file, such a path is whatever the descriptor is: a file that standard output is
+    appended to (``>>``) would be replaced, a pipe does not exist by its link's name."""
+    cur = os.path.abspath(p)
+    for _ in range(40):  # the kernel's limit of links followed
+        if _STREAM.fullmatch(cur):
+            return True
+        try:
+            link = os.readlink(cur)
+        except OSError:
+            return False
+        cur = os.path.normpath(os.path.join(os.path.dirname(cur), link))
+    return False
+
+
 def check_output_path(path: str | Path, *, option: str = "--out",
                       inputs: Iterable[str | Path | None] = ()) -> Path:
     """Check, before any work, that ``path`` can be written as a file, and return it.
@@ -82,10 +118,14 @@ def check_output_path(path: str | Path, *, option: str = "--out",
     Raises
     ------
     InputError
-        ``path`` is a folder, its folder does not exist or is not writable, or it names one
-        of ``inputs`` (files the same command reads).
+        ``path`` is a folder or a standard stream (``/dev/stdout``, ``/dev/fd/1``: ``-`` is
+        standard output), its folder does not exist or is not writable, or it names one of
+        ``inputs`` (files the same command reads).
     """
     p = Path(path)
+    if _standard_stream(p):
+        raise InputError(f"{option} {str(p)!r} is a standard stream, not a file: give a file "
+                         f"name, or {option} - where the command writes to standard output")
     if p.is_dir():
         raise InputError(f"{option} {str(p)!r} is a folder; give a file name")
     if p.exists() and not p.is_file():  # /dev/null, a FIFO: written directly
@@ -296,20 +336,97 @@ _BOMS = ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"),
          (b"\xff\xfe", "UTF-16"), (b"\xfe\xff", "UTF-16"))
 
 
-def read_text(path: str | Path, what: str = "file") -> str:
-    """Read ``path`` as UTF-8 text (a UTF-8 byte-order mark is skipped).
+#: Largest file read whole [bytes] (parameter, gains, spec, manifest and fuzzy-system files):
+#: far above any of them, below anything pathological.
+MAX_INPUT_BYTES = 16 * 1024 * 1024
+#: Deepest nesting of arrays and tables in a TOML or JSON input: the files fuzzyservo reads
+#: nest three or four levels; Python's TOML and JSON parsers recurse once or more a level and
+#: fail near 1000 (RecursionError).
+MAX_NESTING = 64
+
+
+def _named(what: str, p: Path) -> str:
+    return f"{what} {str(p)!r}" if what else repr(str(p))
+
+
+def _file_kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode):
+        return "a character device"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def open_input(path: str | Path, what: str = "file") -> BinaryIO:
+    """Open ``path``, a regular file, for reading in binary mode.
+
+    The file is opened with ``O_NONBLOCK`` and checked with ``fstat`` on the open descriptor
+    (no race with a rename), so a FIFO without a writer is refused at once instead of
+    blocking; a regular file is then read normally. ``what`` names the file in messages.
 
     Raises
     ------
     InputError
-        The file cannot be read, or holds bytes that are not UTF-8 (the message names the file
-        and the offset of the first bad byte) or NUL characters.
+        The file cannot be opened, or is a folder, a FIFO, a device or a socket (the message
+        names it and what it is).
     """
     p = Path(path)
     try:
-        data = p.read_bytes()
+        fd = os.open(p, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     except OSError as exc:
-        raise InputError(f"cannot read {what} {str(p)!r}: {_describe(exc)}") from None
+        raise InputError(f"cannot read {_named(what, p)}: {_describe(exc)}") from None
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise InputError(f"{_named(what, p)} is {_file_kind(mode)}, not a regular file; "
+                             f"give a file")
+        os.set_blocking(fd, True)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def read_bytes(path: str | Path, what: str = "file", limit: int = MAX_INPUT_BYTES) -> bytes:
+    """The bytes of ``path`` (a regular file, :func:`open_input`), read with one bounded read
+    of at most ``limit`` + 1 bytes.
+
+    Raises
+    ------
+    InputError
+        As :func:`open_input`, or the file is larger than ``limit`` bytes.
+    """
+    p = Path(path)
+    try:
+        with open_input(p, what) as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise InputError(f"cannot read {_named(what, p)}: {_describe(exc)}") from None
+    if len(data) > limit:
+        raise InputError(f"{_named(what, p)} is larger than the {limit}-byte limit of an "
+                         f"input file")
+    return data
+
+
+def read_text(path: str | Path, what: str = "file", limit: int = MAX_INPUT_BYTES) -> str:
+    """Read ``path`` as UTF-8 text (a UTF-8 byte-order mark is skipped), at most ``limit``
+    bytes (:func:`read_bytes`).
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, is not a regular file, is larger than ``limit``, or holds
+        bytes that are not UTF-8 (the message names the file and the offset of the first bad
+        byte) or NUL characters.
+    """
+    p = Path(path)
+    data = read_bytes(p, what, limit)
     for bom, name in _BOMS:
         if data.startswith(bom):
             raise InputError(f"{what} {str(p)!r} is {name} text (byte-order mark at byte 0); "
@@ -324,6 +441,82 @@ def read_text(path: str | Path, what: str = "file") -> str:
         raise InputError(f"{what} {str(p)!r} is not text: NUL character at offset "
                          f"{len(text[:nul].encode('utf-8'))}")
     return text
+
+
+# what may hold brackets without nesting: strings (TOML's four kinds, JSON's one) and comments
+_TOML_SKIP = re.compile(r'"""(?:[^\\]|\\.)*?"""|\'\'\'.*?\'\'\'|"(?:[^"\\\n]|\\.)*"|'
+                        r"'[^'\n]*'|#[^\n]*|[\[\]{}]", re.DOTALL)
+_JSON_SKIP = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', re.DOTALL)
+
+
+def _check_brackets(text: str, pattern: re.Pattern[str], what: str) -> None:
+    depth = 0
+    for m in pattern.finditer(text):
+        c = m.group()
+        if c in "[{":
+            depth += 1
+            if depth > MAX_NESTING:
+                raise InputError(f"{what} nests arrays or tables more than {MAX_NESTING} "
+                                 f"levels deep (at character {m.start()}); at most "
+                                 f"{MAX_NESTING} are read")
+        elif c in "]}":
+            depth = max(depth - 1, 0)
+
+
+def _check_depth(obj: Any, what: str) -> None:
+    """Refuse a parsed value nested deeper than MAX_NESTING (iteratively: no recursion)."""
+    stack: list[tuple[Any, int]] = [(obj, 0)]
+    while stack:
+        value, depth = stack.pop()
+        if isinstance(value, dict | list):
+            if depth > MAX_NESTING:
+                raise InputError(f"{what} nests keys, arrays or tables more than "
+                                 f"{MAX_NESTING} levels deep; at most {MAX_NESTING} are read")
+            items = value.values() if isinstance(value, dict) else value
+            stack.extend((v, depth + 1) for v in items)
+
+
+def parse_toml(text: str, what: str) -> dict[str, Any]:
+    """``text`` parsed as TOML, its nesting bounded (:data:`MAX_NESTING`) before parsing.
+
+    ``what`` names the text in messages (``"gains file 'g.toml'"``).
+
+    Raises
+    ------
+    InputError
+        The text is not TOML (the parser's reason, on one line), or nests too deep.
+    """
+    import tomllib
+
+    _check_brackets(text, _TOML_SKIP, what)
+    try:
+        doc = tomllib.loads(text)
+    except ValueError as exc:  # TOMLDecodeError, or an integer of > 4300 digits
+        why = " ".join(str(exc).split())[:200]
+        raise InputError(f"{what} is not valid TOML: {why}") from None
+    except RecursionError:  # not reached with the bound above; never a traceback
+        raise InputError(f"{what} nests too deep to be read") from None
+    _check_depth(doc, what)
+    return doc
+
+
+def parse_json(text: str, what: str) -> Any:
+    """``text`` parsed as JSON (as :func:`json.loads`), its nesting bounded
+    (:data:`MAX_NESTING`) before parsing. ``what`` names the text in messages.
+
+    Raises
+    ------
+    InputError
+        The text is not JSON (the parser's reason, on one line), or nests too deep.
+    """
+    _check_brackets(text, _JSON_SKIP, what)
+    try:
+        return json.loads(text)
+    except ValueError as exc:  # JSONDecodeError, or an integer of > 4300 digits
+        why = " ".join(str(exc).split())[:200]
+        raise InputError(f"{what} is not valid JSON: {why}") from None
+    except RecursionError:  # not reached with the bound above; never a traceback
+        raise InputError(f"{what} nests too deep to be read") from None
 
 
 def _finite(obj: Any) -> Any:

@@ -5,7 +5,9 @@ which adds its parser and sets ``handler`` (a function ``(argparse.Namespace) ->
 Errors a user can cause (:class:`~fuzzyservo.errors.FuzzyServoError`) are printed on one line
 and give exit status 2, without a traceback. A reader that closes the pipe early
 (``fuzzyservo linearize | head -1``) ends the command quietly with status 141, the status of a
-process ended by SIGPIPE, as other command-line tools do.
+process ended by SIGPIPE, as other command-line tools do. Standard output that cannot take
+the text (``> /dev/full``, a full disk, a quota or a file-size limit) ends the command with
+status 2 and one line naming the reason, the same quiet exit otherwise.
 
 Interruptions end on one line too: Ctrl-C (SIGINT) with status 130, at any point including
 start-up, and SIGTERM during a write with 143 (128 + the signal); every file being written at
@@ -21,7 +23,9 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import importlib
+import io
 import os
 import signal
 import sys
@@ -45,6 +49,10 @@ EXIT_PIPE = 141
 
 #: Exit status after Ctrl-C (128 + SIGINT).
 EXIT_INTERRUPT = 130
+
+#: errno values of a write that found no room: on standard output they end the command on one
+#: line (files are written by ``_io.atomic_write``, which names them in an ``OutputError``).
+_NO_ROOM = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT})
 
 
 def _unraisable(previous: Any) -> Any:
@@ -192,6 +200,16 @@ def _numba_cache_best_effort() -> None:
     caching.Cache._fuzzyservo_best_effort = True  # type: ignore[attr-defined]
 
 
+def _stdout_to_devnull() -> None:
+    """Point standard output's descriptor at /dev/null (what its buffer still holds is
+    dropped quietly at exit)."""
+    with contextlib.suppress(OSError, ValueError, io.UnsupportedOperation):
+        fd = sys.stdout.fileno()
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, fd)
+        os.close(devnull)
+
+
 def _run(argv: Sequence[str] | None) -> int:
     try:
         words = list(sys.argv[1:] if argv is None else argv)
@@ -203,9 +221,7 @@ def _run(argv: Sequence[str] | None) -> int:
         sys.stdout.flush()
     except BrokenPipeError:
         # the reader closed the pipe: say nothing, and keep Python's exit-time flush quiet
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-        os.close(devnull)
+        _stdout_to_devnull()
         return EXIT_PIPE
     except SystemExit as exc:  # argparse: usage errors (2, one line), --help and --version (0)
         return exc.code if isinstance(exc.code, int) else 2
@@ -214,6 +230,14 @@ def _run(argv: Sequence[str] | None) -> int:
     except MemoryError:
         return _error("out of memory; ask for less: a shorter or coarser run, a smaller "
                       "grid or population")
+    except OSError as exc:
+        # a write to a stream, not to a named file (those are OutputErrors, handled above):
+        # standard output on a full disk; what is left in its buffer goes nowhere, so the
+        # exit stays quiet
+        if exc.errno not in _NO_ROOM or exc.filename is not None:
+            raise
+        _stdout_to_devnull()
+        return _error(f"cannot write standard output: {exc.strerror or 'no room'}")
     except Exception as exc:  # a library wrapped one of our errors, or an interruption
         # Ctrl-C inside a class body being created (a module imported lazily, e.g.
         # matplotlib's) reaches us as a RuntimeError from __set_name__ with the

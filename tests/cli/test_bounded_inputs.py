@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -422,3 +425,108 @@ def test_row12_progress_over_simulated_time() -> None:
         assert progress is None
     with simulated_time_progress("solve_ivp") as progress:  # stderr captured: not a terminal
         assert progress is None
+
+
+# ------------------------------------------- issue 29: nesting, devices, FIFOs, bounded reads
+
+DEEP = {
+    "arrays": "[load]\nmass = " + "[" * 5000 + "]" * 5000 + "\n",
+    "inline-tables": "[load]\nmass = " + "{a = " * 5000 + "1" + "}" * 5000 + "\n",
+    "dotted-keys": "[load]\nmass" + ".a" * 5000 + " = 1\n",
+}
+
+
+@pytest.mark.parametrize("kind", sorted(DEEP))
+@pytest.mark.parametrize("as_", ["params", "gains"])
+def test_issue29_toml_nested_5000_deep(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                       kind: str, as_: str) -> None:
+    deep = tmp_path / "deep.toml"
+    deep.write_text(DEEP[kind] if as_ == "params" else
+                    'controller = "pid"\n' + DEEP[kind].replace("[load]", "[gains]"))
+    out = _keep(tmp_path / "r.csv")
+    argv = (["linearize", "--params", str(deep)] if as_ == "params" else
+            ["simulate", "--plant", "linear", "--gains", str(deep), "--out", str(out)])
+    err = _error(argv, capsys)
+    what = "parameter file" if as_ == "params" else "gains file"
+    assert f"{what} '{deep}' nests" in err and "more than 64 levels deep" in err
+    assert out.read_bytes() == OLD
+
+
+def _special(tmp_path: Path, kind: str, name: str) -> Path:
+    """A FIFO without a writer, or a link to /dev/zero, named ``name``."""
+    p = tmp_path / name
+    if kind == "fifo":
+        os.mkfifo(p)
+    else:
+        p.symlink_to("/dev/zero")
+    return p
+
+
+SPECIAL_INPUTS = {
+    "params": (["linearize", "--params", "{f}"], "x.toml", "parameter file"),
+    "gains": (["simulate", "--plant", "linear", "--gains", "{f}", "--out", "{d}/r.csv"],
+              "g.toml", "gains file"),
+    "run-csv": (["metrics", "{f}"], "run.csv", "run CSV"),
+    "plot-csv": (["plot", "{f}", "--out", "{d}/f.png"], "run.csv", "run CSV"),
+    "points-csv": (["fis", "eval", "{sys}", "--at", "{f}"], "p.csv", "points CSV"),
+    "fuzzy-file": (["fis", "info", "{f}"], "s.fis", ""),
+    "du-system": (["simulate", "--plant", "linear", "--controller", "fpi", "--gains",
+                   "ke=10,kde=5000,kdu=0.006", "--du-system", "{f}", "--out", "{d}/r.csv"],
+                  "s.fcl", ""),
+    "sweep-spec": (["sweep", "{f}", "--out", "{d}/sw"], "s.toml", "sweep spec"),
+}
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+@pytest.mark.parametrize("case", sorted(SPECIAL_INPUTS))
+def test_issue29_fifos_and_devices_are_refused_as_inputs(tmp_path: Path, kind: str,
+                                                         case: str) -> None:
+    """A FIFO with no writer would block for ever and /dev/zero would be read until memory
+    runs out: both end at once, on one line (a subprocess, so a hang fails on its timeout)."""
+    argv, name, what = SPECIAL_INPUTS[case]
+    f = _special(tmp_path, kind, name)
+    system = Path(__file__).resolve().parents[2] / "src/fuzzyservo/data/systems/paper-du.fis"
+    args = [a.replace("{f}", str(f)).replace("{d}", str(tmp_path)).replace("{sys}", str(system))
+            for a in argv]
+    proc = subprocess.run([sys.executable, "-m", "fuzzyservo", *args], capture_output=True,
+                          text=True, timeout=300, check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    shown = f"{what} '{f}'" if what else f"'{f}'"
+    is_ = "a FIFO (named pipe)" if kind == "fifo" else "a character device"
+    assert proc.stderr.splitlines()[-1] == (f"fuzzyservo: error: {shown} is {is_}, not a "
+                                            f"regular file; give a file")
+    # before the error line, at most the notices of a first compile of the kernels
+    assert all(ln.startswith("fuzzyservo: compil") for ln in proc.stderr.splitlines()[:-1])
+
+
+def test_issue29_dev_zero_as_a_sweep_spec_is_refused_at_once(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    err = _error(["sweep", "/dev/zero", "--out", str(tmp_path / "x")], capsys)
+    assert "sweep spec '/dev/zero' is a character device, not a regular file" in err
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("case", ["params", "gains", "fuzzy-file"])
+def test_issue29_a_file_over_the_input_limit_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], case: str) -> None:
+    """A sparse file of 16 MiB + 1 byte: refused from one bounded read, whatever its size."""
+    argv, name, what = SPECIAL_INPUTS[case]
+    f = tmp_path / name
+    with f.open("wb") as fh:
+        fh.truncate(16 * 1024 * 1024 + 1)
+    err = _error([a.replace("{f}", str(f)).replace("{d}", str(tmp_path)) for a in argv], capsys)
+    shown = f"{what} '{f}'" if what else f"'{f}'"
+    assert f"{shown} is larger than the 16777216-byte limit of an input file" in err
+
+
+def test_issue29_a_csv_line_without_an_end_is_refused(tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    """A sparse run CSV of 1 GiB of zeros is one endless line: refused after 1 MiB."""
+    f = tmp_path / "run.csv"
+    with f.open("wb") as fh:
+        fh.write(b"t,r,y,u\n")
+        fh.truncate(1 << 30)
+    err = _error(["metrics", str(f)], capsys)
+    assert f"run CSV '{f}' line 2 is longer than 1048576 bytes (at offset 8)" in err

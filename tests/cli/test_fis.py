@@ -293,7 +293,7 @@ def test_eval_round_trips_every_value(files: dict[str, Path], tmp_path: Path) ->
      "cannot tell the format of '{d}/sys.txt' from its extension: use .fis, .fcl or .fll"),
     (["fis", "eval", "{d}/three.fis", "--grid", "3"],
      "--grid needs a system with one or two inputs; 'three' has 3 (a, b, c)"),
-    (["fis", "eval", "{d}/one.fcl", "--grid", "1"], "--grid must be between 2 and 4000, got 1"),
+    (["fis", "eval", "{d}/one.fcl", "--grid", "1"], "--grid must be between 2 and 1000, got 1"),
     (["fis", "eval", "{d}/two.fis", "--at", "{d}/xonly.csv"],
      "points CSV '{d}/xonly.csv' lacks column(s) y; expected x, y (found 'x', 'z')"),
     (["fis", "eval", "{d}/two.fis", "--at", "{d}/inf.csv"],

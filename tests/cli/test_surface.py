@@ -78,7 +78,7 @@ def test_bad_points_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str], cont
 @pytest.mark.parametrize(
     ("argv", "match"),
     [
-        (["--grid", "1", "--out", "o.csv"], "--grid must be between 2 and 4000, got 1"),
+        (["--grid", "1", "--out", "o.csv"], "--grid must be between 2 and 1000, got 1"),
         (["--out", "o.csv"], "--out needs the points"),
         ([], "nothing to do"),
         (["--at", "missing.csv", "--out", "o.csv"], "cannot read points CSV"),

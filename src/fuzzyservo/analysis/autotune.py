@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from .._args import seed as check_seed
 from .._typing import FloatArray
 from ..control.fuzzy_pi import KernelSystem
 from ..errors import FuzzyServoError, ParameterError
@@ -242,8 +243,7 @@ class TuningSetup:
             raise ParameterError(f"TuningSetup.duration {self.duration!r} s must span at least "
                                  f"10 samples of ts = {self.ts!r} s")
         time_grid(self.duration, self.ts)  # at most MAX_SAMPLES samples per run
-        if not (isinstance(self.seed, int) and self.seed >= 0):
-            raise ParameterError(f"seed must be a non-negative integer, got {self.seed!r}")
+        check_seed(self.seed, "seed")
         if not 2 <= self.popsize <= MAX_POPSIZE:
             raise ParameterError(f"popsize must be between 2 and {MAX_POPSIZE}, got "
                                  f"{self.popsize!r}")

@@ -68,8 +68,10 @@ __all__ = [
     "with_no_rule_value",
 ]
 
-#: Largest --grid of ``fis eval`` (points per input).
-MAX_GRID = 4000
+#: Largest --grid of ``fis eval`` (points per input): a 1000 x 1000 grid is a million points
+#: and a 60 MB CSV, about 10 s on a loaded two-core machine; 4000 (the former bound, 16
+#: million points) took over 100 s (issue 29). More points: give them with --at.
+MAX_GRID = 1000
 #: Largest --grid of ``fis show`` (a figure of more points shows nothing more).
 MAX_SHOW_GRID = 501
 

@@ -15,7 +15,7 @@ from typing import Any
 from .._io import check_output_path
 from ..errors import InputError
 from ..files import read_run_csv
-from ..plots.runs import FIGURE_FORMATS, runs_figure, save_figure
+from ..plots.runs import FIGURE_FORMATS, check_text, runs_figure, save_figure
 from . import HELP
 
 __all__ = ["register", "run"]
@@ -56,6 +56,10 @@ def run(args: argparse.Namespace) -> int:
     if len(labels) != len(args.csv):
         raise InputError(f"{len(labels)} --label for {len(args.csv)} run CSV(s); give one "
                          f"per run or none")
+    for label in labels:
+        check_text(label, "--label")
+    if args.title:
+        check_text(args.title, "--title")
     runs = [read_run_csv(p) for p in args.csv]
     if args.metrics:
         for p, r in zip(args.csv, runs, strict=True):

@@ -45,7 +45,8 @@ from . import HELP
 __all__ = ["read_points_csv", "register", "run", "write_values_csv"]
 
 SYSTEMS = {"du": du_system, "alpha": alpha_system}
-MAX_GRID = 4000
+#: Largest --grid (points per input): the bound of ``fis eval`` and for its reason.
+MAX_GRID = 1000
 
 
 def register(subparsers: Any) -> None:

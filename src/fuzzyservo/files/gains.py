@@ -26,7 +26,6 @@ file's sample time unless told otherwise (the fuzzy PIs' ``kde`` is per sample).
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,7 +33,7 @@ from typing import Any
 
 import tomli_w
 
-from .._io import read_text, write_text_atomic
+from .._io import parse_toml, read_text, write_text_atomic
 from ..analysis.autotune import StageRecord, TunedGains, TuningSetup, setup_record
 from ..analysis.robust import RobustRecord
 from ..analysis.tuning import GainBounds, TuningConstraints
@@ -126,13 +125,20 @@ def read_gains_toml(path: str | Path) -> TunedGains:
     return _tuned_from_doc(path, _load_toml(path))
 
 
+def _check_layout(rd: _Reader, doc: Mapping[str, Any]) -> int:
+    """The file's layout (``format``; a file without one is layout 1), refused if this
+    version does not read it."""
+    layout = rd.get(doc, "format", int, "") if "format" in doc else 1
+    if layout not in (1, FORMAT):
+        raise InputError(f"{str(rd.path)!r}: gains file layout {layout} is not one this "
+                         f"version reads (1 or {FORMAT})")
+    return int(layout)
+
+
 def _tuned_from_doc(path: Path, doc: Mapping[str, Any]) -> TunedGains:
     """The tuning record of a parsed gains file (see :func:`read_gains_toml`)."""
     rd = _Reader(path)
-    layout = rd.get(doc, "format", int, "") if "format" in doc else 1
-    if layout not in (1, FORMAT):
-        raise InputError(f"{str(path)!r}: gains file layout {layout} is not one this version "
-                         f"reads (1 or {FORMAT})")
+    layout = _check_layout(rd, doc)
     controller = rd.get(doc, "controller", str, "")
     where = f"{str(path)!r}: "
     try:
@@ -276,12 +282,7 @@ def _load_toml(path: Path) -> dict[str, Any]:
     a bad byte is reported with its offset)."""
     if path.is_dir():
         raise InputError(f"gains file {str(path)!r} is a directory; give a gains file (.toml)")
-    text = read_text(path, "gains file")
-    try:
-        return tomllib.loads(text)
-    except ValueError as exc:  # TOMLDecodeError, or an integer of > 4300 digits
-        why = " ".join(str(exc).split())[:200]
-        raise InputError(f"{str(path)!r} is not valid TOML: {why}") from None
+    return parse_toml(read_text(path, "gains file"), f"gains file {str(path)!r}")
 
 
 def read_gains_file(path: str | Path) -> GainsFile:
@@ -301,6 +302,7 @@ def read_gains_file(path: str | Path) -> GainsFile:
         return GainsFile(path=path, controller=tuned.controller, gains=dict(tuned.gains),
                          tuned=tuned)
     rd = _Reader(path)
+    _check_layout(rd, doc)
     controller = rd.get(doc, "controller", str, "")
     where = f"{str(path)!r}: "
     unknown = sorted(set(doc) - {"controller", "gains", "format"})

@@ -20,6 +20,7 @@ from typing import BinaryIO
 
 import numpy as np
 
+from .._io import open_input
 from .._typing import FloatArray
 from ..errors import InputError
 
@@ -64,11 +65,22 @@ _BOMS = ((b"\xff\xfe\x00\x00", "UTF-32"), (b"\x00\x00\xfe\xff", "UTF-32"),
          (b"\xff\xfe", "UTF-16"), (b"\xfe\xff", "UTF-16"))
 
 
+#: Longest line of a CSV read [bytes]: a run CSV's row is a few hundred bytes, a points CSV's
+#: about 25 a column; a longer line (a file of zeros without a line end) is refused rather
+#: than read whole into memory.
+MAX_LINE_BYTES = 1024 * 1024
+
+
 def _text_lines(fh: BinaryIO, path: Path, what: str) -> Iterator[str]:
     """The lines of a binary file as strict UTF-8 text, one at a time (a UTF-8 byte-order mark
-    skipped); a bad byte or a NUL is an error naming the file and the byte offset."""
+    skipped); a bad byte or a NUL is an error naming the file and the byte offset, and so is
+    a line longer than :data:`MAX_LINE_BYTES` (each line is one bounded read)."""
     offset = 0
-    for n, raw in enumerate(fh):
+    for n, raw in enumerate(iter(lambda: fh.readline(MAX_LINE_BYTES + 1), b"")):
+        if len(raw) > MAX_LINE_BYTES and not raw.endswith(b"\n"):
+            raise InputError(f"{what} {str(path)!r} line {n + 1} is longer than "
+                             f"{MAX_LINE_BYTES} bytes (at offset {offset}); a CSV row is "
+                             f"far shorter")
         if n == 0:
             for bom, name in _BOMS:
                 if raw.startswith(bom):
@@ -97,12 +109,15 @@ def read_csv_columns(path: str | Path, required: tuple[str, ...], *, what: str,
     ``required`` columns must be present and finite; another column is kept when every cell
     is a number (NaN allowed) and left out otherwise (a text column); ``what`` names the file
     in messages. The file is read as a stream (memory: the float columns, 8 bytes a value),
-    as strict UTF-8, and every row must have one value per column of the header.
+    as strict UTF-8, and every row must have one value per column of the header. Only a
+    regular file is read (a FIFO or a device is refused), each line at most
+    :data:`MAX_LINE_BYTES`.
 
     Raises
     ------
     InputError
-        The file cannot be read, is not UTF-8 (the message names the byte offset), has no
+        The file cannot be read or is not a regular file, has a line longer than
+        :data:`MAX_LINE_BYTES`, is not UTF-8 (the message names the byte offset), has no
         header, names a column twice, lacks a required column, has a row with more or fewer
         values than the header names (a row cut short), has fewer than ``min_rows`` data
         rows, or holds a value that is not a number (the message names the line and column).
@@ -114,7 +129,7 @@ def read_csv_columns(path: str | Path, required: tuple[str, ...], *, what: str,
     need: list[bool] = []
     rows = 0
     try:
-        with path.open("rb") as fh:
+        with open_input(path, what) as fh:  # a regular file (not a FIFO, not a device)
             reader = csv.reader(_text_lines(fh, path, what))
             for row in reader:
                 if not row or row[0].lstrip().startswith("#"):

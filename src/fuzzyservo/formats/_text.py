@@ -6,7 +6,13 @@ import math
 
 from ..errors import FormatError
 
-__all__ = ["Source", "fmt_float", "parse_float"]
+__all__ = ["MAX_POINTS", "Source", "fmt_float", "parse_float"]
+
+#: Most points of one piecewise-linear term (an FCL point list, a Discrete term, a .fis
+#: ``discretemf``): fuzzylite's FLL reader's bound of 1024 numbers a term (fll.MAX_NUMBERS), so
+#: every format reads the same systems. Far above hand-drawn terms; a term of 200,000 points
+#: made every evaluation of the system take minutes.
+MAX_POINTS = 512
 
 
 class Source:

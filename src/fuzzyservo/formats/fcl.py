@@ -61,6 +61,8 @@ Mappings and decisions
   triangle, ``(a,0) (b,1) (c,1) (d,0)`` a trapezoid, ``(b,1) (c,1) (d,0)`` a left shoulder
   (trapezoid from -inf); any other list (including vertical edges) is a discrete term. The
   membership is the same either way; the writer relies on it to write point lists.
+- Sizes: a term has at most :data:`~fuzzyservo.formats._text.MAX_POINTS` points (IEC sets no
+  bound; fuzzylite's FLL reader's bound, so a system read from any format fits in each).
 - Mixing AND and OR without parentheses is refused: fuzzylite binds AND tighter, jFuzzyLogic
   reads left to right, so the file means different things to different tools.
 
@@ -117,7 +119,7 @@ from ..fuzzy.system import (
     Term,
     Variable,
 )
-from ._text import Source, fmt_float
+from ._text import MAX_POINTS, Source, fmt_float
 
 __all__ = ["dump", "parse"]
 
@@ -635,6 +637,12 @@ class _Parser:
         if t.kind == "(":
             params: list[float] = []
             while self.peek().kind == "(":
+                if len(params) == 2 * MAX_POINTS:
+                    text = self.src.text
+                    end = text.find(";", t.pos)
+                    count = text.count("(", t.pos, end if end >= 0 else len(text))
+                    raise self.err(t, f"term {name.text!r} has {count} points; a term takes "
+                                      f"at most {MAX_POINTS}")
                 self.advance()
                 params.append(self.number("a point's x"))
                 self.expect(",", "','")
@@ -651,6 +659,9 @@ class _Parser:
             self.advance()
             params = []
             while self.peek().kind != ";":
+                if len(params) == 2 * MAX_POINTS + 1:  # a Discrete term's points, its height
+                    raise self.err(t, f"term {name.text!r}: more than {2 * MAX_POINTS + 1} "
+                                      f"numbers ({MAX_POINTS} points and a height at most)")
                 params.append(self.number(f"a parameter of {t.text}"))
             spec = _TermSpec(name, "class", word=word, shape_tok=t, params=params)
         else:

@@ -52,7 +52,8 @@ Reading
   name becomes ``fuzzy`` / ``inputK`` / ``outputK`` / ``mfK``; each change is noted. Two names
   that end up equal are refused.
 - Sizes: at most :data:`MAX_VARIABLES` inputs and as many outputs, :data:`MAX_TERMS` terms a
-  variable; nothing else is bounded but the text (there is no nesting to recurse into).
+  variable, :data:`~fuzzyservo.formats._text.MAX_POINTS` points a ``discretemf``; nothing else
+  is bounded but the text (there is no nesting to recurse into).
 - Rules: a term index with a fraction (``1.2``: a hedge for fuzzylite and Octave) is refused; a
   rule that mentions no input, or no output, is refused (fuzzylite writes such rules for rules
   that chain outputs, which .fis cannot hold), and so is a negative output index (NOT on an
@@ -113,7 +114,7 @@ from ..fuzzy.system import (
     Term,
     Variable,
 )
-from ._text import Source, fmt_float, parse_float
+from ._text import MAX_POINTS, Source, fmt_float, parse_float
 
 __all__ = ["MAX_TERMS", "MAX_VARIABLES", "dump", "parse"]
 
@@ -536,6 +537,9 @@ class _Reader:
         if shape == "linear" and len(params) != n_in + 1:
             raise self.err(off + i, f"{where}: linear needs {n_in + 1} values (one per input, "
                                     f"then the constant), found {len(params)}")
+        if mf == "discretemf" and len(params) > 2 * MAX_POINTS + 1:
+            raise self.err(off + i, f"{where}: discretemf has {len(params) // 2} points; a "
+                                    f"term takes at most {MAX_POINTS}")
         if mf == "discretemf" and len(params) % 2 == 1 and len(params) > 4:
             height, params = params[-1], params[:-1]
         elif mf in ("rampmf", "rectmf") and len(params) == 3:

@@ -6,7 +6,7 @@ import importlib
 from pathlib import Path
 from typing import Any
 
-from ..errors import InputError, ParameterError
+from ..errors import ParameterError
 from ..fuzzy.system import FuzzySystem
 
 __all__ = ["FORMATS", "dumps", "format_of", "loads", "read_system", "write_system"]
@@ -45,16 +45,14 @@ def dumps(system: FuzzySystem, fmt: str) -> str:
 
 
 def read_system(path: str | Path) -> FuzzySystem:
-    """Read a fuzzy system from a .fis, .fcl or .fll file (format from the extension)."""
+    """Read a fuzzy system from a .fis, .fcl or .fll file (format from the extension): a
+    regular file of at most :data:`MAX_BYTES` (a FIFO, a device or a larger file is an
+    InputError naming it)."""
+    from .._io import read_bytes
+
     p = Path(path)
     fmt = format_of(p)
-    try:
-        size = p.stat().st_size
-        if size > MAX_BYTES:
-            raise InputError(f"{p}: {size} bytes is larger than the {MAX_BYTES}-byte limit")
-        data = p.read_bytes()
-    except OSError as exc:
-        raise InputError(f"cannot read {str(p)!r}: {exc.strerror or exc}") from None
+    data = read_bytes(p, "", MAX_BYTES)  # a regular file, one bounded read
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:

@@ -14,14 +14,13 @@ nominal supply pressure (docs/model.md, "Flow gain").
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-from .._io import read_text
-from ..errors import InputError, ParameterError
+from .._io import parse_toml, read_text
+from ..errors import ParameterError
 
 __all__ = [
     "CylinderParams",
@@ -29,6 +28,7 @@ __all__ = [
     "FluidParams",
     "GROUPS",
     "LoadParams",
+    "MIN_SUPPLY_PRESSURE",
     "ServoParams",
     "SupplyParams",
     "TransducerParams",
@@ -185,11 +185,19 @@ class LoadParams:
         _finite(o, "external_force", self.external_force)
 
 
+#: Lowest supply pressure [Pa]: 1 bar absolute, the atmosphere. ``pressure`` is absolute, so
+#: below it the "supply" is a vacuum that drives no oil; the model would still integrate
+#: (flows go as the square root of the pressure drop) and linearise to a servo of velocity
+#: gain ~0 (``linearize --param supply.pressure=1e-300`` gave an eigenvalue of 0). Industrial
+#: supplies are 20 to 350 bar; the paper's is 70 bar.
+MIN_SUPPLY_PRESSURE = 1.0e5
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class SupplyParams:
     """Constant-pressure supply with optional sinusoidal ripple; tank at tank_pressure."""
 
-    pressure: float  #: nominal supply pressure P_s (absolute) [Pa]
+    pressure: float  #: nominal supply pressure P_s (absolute), >= 1 bar [Pa]
     tank_pressure: float = 0.0  #: return pressure P_T (absolute) [Pa]
     ripple_amplitude: float = 0.0  #: supply ripple amplitude, paper's ±500 kPa [Pa]
     ripple_frequency: float = 225.0  #: supply ripple frequency [Hz]
@@ -197,6 +205,10 @@ class SupplyParams:
     def __post_init__(self) -> None:
         o = "supply"
         _positive(o, "pressure", self.pressure)
+        if not self.pressure >= MIN_SUPPLY_PRESSURE:
+            raise ParameterError(
+                f"supply.pressure must be at least {MIN_SUPPLY_PRESSURE:g} Pa (1 bar absolute: "
+                f"below the atmosphere there is no supply), got {self.pressure!r} Pa")
         _nonnegative(o, "tank_pressure", self.tank_pressure)
         if not self.tank_pressure < self.pressure:
             raise ParameterError(
@@ -342,11 +354,7 @@ def read_overrides_toml(path: str | Path) -> dict[str, float]:
         For an unknown group.
     """
     text = read_text(path, "parameter file")
-    try:
-        data = tomllib.loads(text)
-    except ValueError as exc:  # TOMLDecodeError, or an integer of > 4300 digits
-        why = " ".join(str(exc).split())[:200]
-        raise InputError(f"parameter file {str(path)!r} is not valid TOML: {why}") from None
+    data = parse_toml(text, f"parameter file {str(path)!r}")
     flat: dict[str, Any] = {}
     for group, table in data.items():
         if group not in GROUPS:

@@ -26,7 +26,8 @@ from ..errors import InputError
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["FIGURE_FORMATS", "RunCurve", "run_curves", "runs_figure", "save_figure"]
+__all__ = ["FIGURE_FORMATS", "RunCurve", "check_text", "run_curves", "runs_figure",
+           "save_figure"]
 
 #: File suffixes :func:`save_figure` writes.
 FIGURE_FORMATS: tuple[str, ...] = (".png", ".svg")
@@ -114,6 +115,32 @@ def run_curves(runs: Sequence[Run], labels: Sequence[str] | None = None, *,
     return out
 
 
+def check_text(text: str, what: str) -> str:
+    """Check that matplotlib can draw ``text`` (a label or title) and return it.
+
+    Text with an even, non-zero number of unescaped ``$`` is mathtext to matplotlib; mathtext
+    it cannot parse would fail only when the figure is drawn, with a multi-line error.
+
+    Raises
+    ------
+    InputError
+        ``text`` is mathtext that does not parse; the message names ``what``, the text and
+        matplotlib's reason, on one line.
+    """
+    from matplotlib import cbook, mathtext
+
+    if cbook.is_math_text(text):
+        try:
+            mathtext.MathTextParser("path").parse(text)
+        except ValueError as exc:  # matplotlib's parse error: the text, a caret, the reason
+            reason = next((ln.strip() for ln in reversed(str(exc).splitlines()) if ln.strip()),
+                          type(exc).__name__)
+            # the text as typed (a repr would double every backslash of the TeX)
+            raise InputError(f"{what} '{text}' is not valid mathtext ({reason}); write a "
+                             f"literal dollar sign as \\$") from None
+    return text
+
+
 def runs_figure(runs: Sequence[Run], labels: Sequence[str] | None = None, *,
                 metrics: bool = False, relative: bool = False,
                 title: str | None = None) -> Figure:
@@ -121,11 +148,20 @@ def runs_figure(runs: Sequence[Run], labels: Sequence[str] | None = None, *,
     where any run has it; one colour per run (reference dashed in the run's colour).
 
     Parameters as :func:`run_curves`; ``title`` heads the figure.
+
+    Raises
+    ------
+    InputError
+        A label or the title is mathtext matplotlib cannot parse (:func:`check_text`).
     """
     # imported when drawing, so that importing fuzzyservo.plots does not load matplotlib
     from matplotlib.figure import Figure
 
     curves = run_curves(runs, labels, metrics=metrics, relative=relative)
+    for c in curves:
+        check_text(c.label, "label")
+    if title:
+        check_text(title, "title")
     with_alpha = any(c.alpha is not None for c in curves)
     n_rows = 3 if with_alpha else 2
     fig = Figure(figsize=(8.0, 2.2 + 2.3 * n_rows), dpi=110)

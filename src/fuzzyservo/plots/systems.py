@@ -47,6 +47,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure, SubFigure
 
 __all__ = [
+    "MAX_DRAWN",
     "MF_SAMPLES",
     "ResponseData",
     "SystemFigureData",
@@ -68,6 +69,11 @@ MF_SAMPLES = 801
 DPI = 120
 #: Panels per row of the membership functions.
 _PANELS_PER_ROW = 3
+#: Largest magnitude of a range's end that a figure draws: matplotlib's axis ticks take
+#: differences and multiples of the limits, which overflow from about 1e307 (seen: a range of
+#: (-8e307, 8e307) fails in its tick locator, (-1e308, 1e308) in its limit check); 1e300
+#: leaves that arithmetic seven orders of magnitude of room.
+MAX_DRAWN = 1e300
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -201,11 +207,22 @@ def variable_panels(system: FuzzySystem, n: int = MF_SAMPLES) -> tuple[VariableP
         The fuzzy system.
     n : int
         Samples of a term that is not piecewise linear, >= 2.
+
+    Raises
+    ------
+    ParameterError
+        A variable's range reaches beyond +-:data:`MAX_DRAWN` (no axis can show it).
     """
     panels: list[VariablePanel] = []
     for role, variables in (("input", system.inputs), ("output", system.outputs)):
         for v in variables:
             lo, hi = v.range
+            if max(-lo, hi) > MAX_DRAWN:
+                raise ParameterError(
+                    f"cannot draw {role} {v.name!r}: its range [{lo!r}, {hi!r}] reaches "
+                    f"beyond +-{MAX_DRAWN:g}, the largest an axis of a figure holds "
+                    f"(matplotlib's ticks overflow); give the variable a RANGE within it, "
+                    f"or evaluate the system with fis eval")
             if role == "output" and system.kind == "sugeno":
                 panels.append(VariablePanel(
                     name=v.name, role="output", range=v.range, curves=(),
@@ -277,12 +294,13 @@ def system_figure_data(system: FuzzySystem, grid: int | None = None,
     n_mf : int
         Samples of a membership function that is not piecewise linear.
     """
+    panels = variable_panels(system, n_mf)  # first: it refuses ranges no axis can show
     response = None
     if len(system.inputs) <= 2:
         n = grid if grid is not None else (81 if len(system.inputs) == 2 else 401)
         response = response_data(system, n)
-    return SystemFigureData(title=f"{system.name} ({system.kind})",
-                            panels=variable_panels(system, n_mf), response=response)
+    return SystemFigureData(title=f"{system.name} ({system.kind})", panels=panels,
+                            response=response)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -32,6 +32,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from .._args import mapping, real
 from .._typing import FloatArray
 from ..control import FuzzyPIController, PIDController, SelfTuningFuzzyPIController
 from ..control.fuzzy_pi import KernelSystem
@@ -111,7 +112,11 @@ class GainSpec:
         try:
             v = float(value)
         except (TypeError, ValueError):
-            raise ParameterError(f"{where}gain {self.name}: {value!r} is not a number") from None
+            raise ParameterError(f"{where}gain {self.name}: {value!r:.60} is not a "
+                                 f"number") from None
+        except OverflowError:  # an int beyond the largest float (10**400)
+            raise ParameterError(f"{where}gain {self.name}: {value!r:.40}... is too large for "
+                                 f"a float (at most 1.8e308)") from None
         if self.allow_inf:
             if not (v > 0.0) or math.isnan(v):
                 raise ParameterError(f"{where}gain {self.name} must be > 0 (inf: none), got "
@@ -416,9 +421,16 @@ class ControllerKind:
         Raises
         ------
         ParameterError
-            Bad gains, an option the kind does not take, or a missing fuzzy system.
+            Gains, systems or options that are not mappings, a sample time that is not a
+            positive number, bad gains, an option the kind does not take, or a missing fuzzy
+            system (the message names the argument, the value and its type).
         """
-        options = dict(options or {})
+        mapping(gains, "gains", "gain name to value, e.g. {'kp': 10.0}")
+        dt = real(dt, "dt (the sample time)", "s", positive=True)
+        if systems is not None:
+            mapping(systems, "systems", "role to fuzzy system, e.g. {'du': ...}")
+        options = dict(mapping(options, "options", "option name to value") if options
+                       is not None else {})
         bad = [o for o in options if o not in self.option_names]
         if bad:
             raise ParameterError(f"controller {self.name} takes no option {bad[0]!r}; its "

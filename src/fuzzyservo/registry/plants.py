@@ -26,6 +26,9 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
 
+from .._args import given, real
+from ..errors import ParameterError
+from ..paper.published import SET_NAMES, named_set
 from ..plant import LinearServo, ServoParams, linearize
 from ..sim import LinearPlant, NonlinearPlant, Plant
 from ._table import lookup
@@ -62,6 +65,9 @@ class PlantKind:
     supply_ripple : bool
         Whether a supply-pressure ripple (``supply.ripple_amplitude``) reaches the model (the
         linearisations leave it out).
+    ignores : tuple of str
+        Parameters (``group.field``) the model leaves out: a run on it is the same whatever
+        their values (``fuzzyservo simulate`` notes an override of one).
     """
 
     name: str
@@ -69,6 +75,13 @@ class PlantKind:
     make: Callable[[ServoParams, float, float], Plant]
     force_input: bool = False
     supply_ripple: bool = False
+    ignores: tuple[str, ...] = ()
+
+
+#: What the linearisations leave out: the measurement's rounding (only the nonlinear loop
+#: rounds, sim.closed_loop.plant_limits) and the supply ripple.
+_LINEAR_IGNORES = ("transducer.resolution", "supply.ripple_amplitude",
+                   "supply.ripple_frequency")
 
 
 def _linear(params: ServoParams, position: float, substep: float) -> Plant:
@@ -88,10 +101,10 @@ def _nonlinear(params: ServoParams, position: float, substep: float) -> Plant:
 
 _PLANTS: dict[str, PlantKind] = {
     "linear": PlantKind(name="linear", title="eq. (8), linearised at the start position",
-                        make=_linear),
+                        make=_linear, ignores=_LINEAR_IGNORES),
     "small-signal": PlantKind(name="small-signal",
                               title="small-signal linearisation of the nonlinear model",
-                              make=_small_signal),
+                              make=_small_signal, ignores=_LINEAR_IGNORES),
     "nonlinear": PlantKind(name="nonlinear", title="nonlinear two-chamber model (RK4)",
                            make=_nonlinear, force_input=True, supply_ripple=True),
 }
@@ -116,7 +129,7 @@ def plant_kind(name: str) -> PlantKind:
     return lookup(_PLANTS, name, "plant")
 
 
-def build_plant(name: str, params: ServoParams, position: float | None = None, *,
+def build_plant(name: str, params: ServoParams | str, position: float | None = None, *,
                 substep: float = DEFAULT_SUBSTEP) -> Plant:
     """Build the plant registered as ``name``, at rest at ``position``.
 
@@ -124,12 +137,13 @@ def build_plant(name: str, params: ServoParams, position: float | None = None, *
     ----------
     name : str
         Registered name (:func:`plant_names`): ``linear``, ``small-signal``, ``nonlinear``.
-    params : ServoParams
-        Servo parameters.
+    params : ServoParams or str
+        Servo parameters, or the name of a set (``"paper"``, ``"stiff-oil"``:
+        :func:`fuzzyservo.paper.published.named_set`).
     position : float, optional
         Start position inside the stroke [m]; default mid-stroke.
     substep : float
-        RK4 step bound of the nonlinear plant [s].
+        RK4 step bound of the nonlinear plant [s], > 0.
 
     Returns
     -------
@@ -138,8 +152,15 @@ def build_plant(name: str, params: ServoParams, position: float | None = None, *
     Raises
     ------
     ParameterError
-        Unknown name, a position outside the stroke, or no equilibrium there.
+        Unknown name or set, parameters of another type, a position or substep that is not a
+        number, a position outside the stroke, or no equilibrium there.
     """
     kind = plant_kind(name)
-    pos = 0.5 * params.cylinder.stroke if position is None else float(position)
-    return kind.make(params, pos, substep)
+    if isinstance(params, str):
+        params = named_set(params)
+    if not isinstance(params, ServoParams):
+        raise ParameterError(f"params must be a ServoParams or the name of a set "
+                             f"({', '.join(SET_NAMES)}), got {given(params)}")
+    pos = (0.5 * params.cylinder.stroke if position is None
+           else real(position, "position", "m"))
+    return kind.make(params, pos, real(substep, "substep", "s", positive=True))

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .._args import seed as check_seed
 from .._typing import FloatArray
 from ..errors import ParameterError, UsageError
 from ..paper.published import named_set
@@ -43,6 +44,7 @@ from ..registry import (
     controller_names,
     controller_options,
     default_systems,
+    plant_kind,
 )
 from ..sim import DEFAULT_DELAY, parse_reference, simulate, simulate_batch
 
@@ -372,8 +374,7 @@ class RunSpec:
         self.checked_delay(resolved)
         check_start(self.start)
         reference = parse_reference(self.reference)
-        if self.seed < 0:
-            raise ParameterError(f"--seed must be a non-negative integer, got {self.seed}")
+        check_seed(self.seed, "--seed")
         return resolved, self.plant_of(resolved), reference
 
     def plant_of(self, params: ServoParams) -> Any:
@@ -434,12 +435,20 @@ class BuiltRun:
 
     def notes(self) -> tuple[str, ...]:
         """What the command prints as notes for the run: the scaling of each fuzzy system
-        read from a file."""
+        read from a file, and each override of a parameter the plant leaves out
+        (``PlantKind.ignores``: the run is the same without it)."""
         from ..fuzzy.loop import LoopSystem
 
-        return tuple(f"{role} system {s.describe(role)}"
-                     for role, s in sorted((self.systems or {}).items())
-                     if isinstance(s, LoopSystem))
+        systems = [f"{role} system {s.describe(role)}"
+                   for role, s in sorted((self.systems or {}).items())
+                   if isinstance(s, LoopSystem)]
+        ignored = plant_kind(self.spec.plant).ignores
+        base = to_dict(named_set(self.spec.param_set))
+        unused = [f"parameter {key} = {value!r} has no effect on the {self.spec.plant} plant "
+                  f"(only the nonlinear model has it); the run is the same without it"
+                  for key, value in self.spec.overrides
+                  if key in ignored and value != base[key.split(".")[0]][key.split(".")[1]]]
+        return tuple(systems + unused)
 
     def rng(self) -> np.random.Generator:
         """The noise generator, seeded."""

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from .._args import given, real
 from .._typing import ArrayLike, FloatArray
 from ..control.base import PackedController
 from ..errors import InputError, ParameterError, SimulationDivergedError
@@ -56,6 +57,7 @@ from .references import (
     Reference,
     check_reference,
     check_reference_samples,
+    parse_reference,
     sample_reference,
 )
 from .result import SimResult
@@ -414,9 +416,10 @@ def simulate(
         builds any registered kind by name.
     plant : LinearPlant or NonlinearPlant
         The plant, starting at rest (``fuzzyservo.registry.build_plant`` by name).
-    reference : Reference or array
-        Reference offset from the start position [m]: a reference object or one value per
-        sample.
+    reference : Reference, str or array
+        Reference offset from the start position [m]: a reference object, its command-line
+        form (``"step:0.1"``, :func:`~fuzzyservo.sim.references.parse_reference`) or one
+        value per sample.
     duration : float
         Simulated time [s], at least one sample.
     delay : float
@@ -438,16 +441,24 @@ def simulate(
     Raises
     ------
     ParameterError
-        Bad sample time, duration, noise level, or a delay longer than the run.
+        A controller, plant or ``rng`` of the wrong type, a duration, delay or noise level
+        that is not a number; bad sample time, duration, noise level, or a delay longer than
+        the run.
     InputError
-        A non-finite reference or disturbance; a reference that leaves the stroke, starts
-        after the end of the run, or (a sine) aliases at the sample time; a transducer
+        A reference string that does not parse; a non-finite reference or disturbance; a
+        reference that leaves the stroke, starts after the end of the run, or (a sine)
+        aliases at the sample time; a transducer
         resolution coarser than the reference's move
         (:func:`~fuzzyservo.sim.references.check_reference`,
         :func:`~fuzzyservo.sim.references.check_reference_samples`).
     SimulationDivergedError
         The plant state became non-finite; the message names the time and state.
     """
+    check_run_arguments(controller, plant, rng)
+    reference = as_reference(reference)
+    duration = real(duration, "duration", "s", positive=True)
+    delay = real(delay, "delay", "s", nonnegative=True)
+    noise_std = real(noise_std, "noise_std", "m", nonnegative=True)
     ts = float(controller.dt)
     delay = check_delay(delay, duration=duration)
     t = time_grid(duration, ts)
@@ -460,6 +471,29 @@ def simulate(
     info: dict[str, Any] = {"controller": controller, "plant": plant, "noise_std": noise_std}
     return SimResult(t=t, r=r, y=run.y, u=run.u, alpha=run.alpha, x=run.x,
                      state_names=plant.state_names, ts=ts, delay=delay, info=info)
+
+
+def check_run_arguments(controller: object, plant: object, rng: object) -> None:
+    """Refuse a controller, plant or ``rng`` of the wrong type, naming the argument, the
+    value, its type and what is allowed (ParameterError)."""
+    if not isinstance(controller, PackedController):
+        raise ParameterError(f"controller must be a controller object "
+                             f"(fuzzyservo.registry.build_controller('pid', gains, dt=...)), "
+                             f"got {given(controller)}")
+    if not isinstance(plant, LinearPlant | NonlinearPlant):
+        raise ParameterError(f"plant must be a LinearPlant or NonlinearPlant "
+                             f"(fuzzyservo.registry.build_plant('linear', 'paper')), got "
+                             f"{given(plant)}")
+    if rng is not None and not isinstance(rng, np.random.Generator):
+        raise ParameterError(f"rng must be a numpy.random.Generator "
+                             f"(numpy.random.default_rng(seed)) or None, got {given(rng)}")
+
+
+def as_reference(reference: Any) -> Any:
+    """A reference as :func:`simulate` takes it: a string is read as the command line's
+    ``--reference`` (:func:`~fuzzyservo.sim.references.parse_reference`); anything else is
+    passed on unchanged (a reference object, or one value per sample)."""
+    return parse_reference(reference) if isinstance(reference, str) else reference
 
 
 def _noise(std: float, rng: np.random.Generator | None, shape: tuple[int, ...]) -> FloatArray:
