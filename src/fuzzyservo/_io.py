@@ -164,7 +164,8 @@ def _manifest_doc(path: Path) -> dict[str, Any] | None:
     return doc if isinstance(doc, dict) else None
 
 
-def result_data_of(path: str | Path) -> str | None:
+def result_data_of(path: str | Path,
+                   kinds: tuple[str, ...] = ("sweep", "study")) -> str | None:
     """Why writing the file ``path`` would replace the data of a sweep or a study folder it
     lies in (as written, or with links resolved), or None.
 
@@ -173,7 +174,7 @@ def result_data_of(path: str | Path) -> str | None:
     study's when its ``manifest.json`` is a JSON object naming ``fuzzyservo`` (what
     ``reproduce`` writes); its data are the manifest, ``.lock``, ``.cache/`` and every output
     the manifest lists. Anything else in such a folder (``D/report.html`` beside a sweep) may
-    be written."""
+    be written. ``kinds`` limits the folders looked for (``("sweep",)``)."""
     seen: set[Path] = set()
     for target in (Path(os.path.abspath(path)), Path(os.path.realpath(path))):
         for folder in target.parents:
@@ -199,7 +200,7 @@ def result_data_of(path: str | Path) -> str | None:
                                                          if listed else None)
             else:
                 continue
-            if what is not None:
+            if what is not None and kind in kinds:
                 return (f"would replace {what} (the {kind} folder {str(folder)!r}); write "
                         f"outside the {kind}'s own files")
     return None
@@ -559,6 +560,8 @@ def write_texts_atomic(files: dict[Path, str]) -> list[Path]:
             temps = []
         for folder in dict.fromkeys(_texts_target(Path(p)).parent for p in files):
             fsync_folder(folder)
+    except OutputError:  # already names the file: not "cannot write ...: cannot write"
+        raise
     except OSError as exc:
         shown = ", ".join(repr(str(p)) for p in files)
         raise OutputError(f"cannot write {shown}: {_describe(exc)}; the previous files, if "

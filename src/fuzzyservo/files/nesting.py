@@ -9,11 +9,11 @@ through then parses without recursing more than the bound.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from ..errors import InputError
 
-__all__ = ["MAX_NESTING", "_nesting_check"]
+__all__ = ["MAX_NESTING", "_depth_check", "_nesting_check"]
 
 #: Deepest nesting of arrays and tables a file of fuzzyservo's may have: its specs,
 #: manifests and records nest less than 10 deep.
@@ -71,3 +71,26 @@ def _nesting_check(text: str, *, what: str, syntax: Literal["json", "toml"],
             i = j + len(quote)
             continue
         i += 1
+
+
+def _depth_check(doc: Any, *, what: str, limit: int = MAX_NESTING) -> None:
+    """Refuse parsed data (dicts and lists) nested deeper than ``limit``, without recursing:
+    TOML's dotted keys (``a.b.c... = 1``, ``[a.b.c...]``) nest tables without a bracket, so
+    :func:`_nesting_check` cannot see them, and code that walks or prints the result
+    recursively would end in ``RecursionError``.
+
+    Raises
+    ------
+    InputError
+        Nesting deeper than ``limit``; the message names ``what``.
+    """
+    stack: list[tuple[Any, int]] = [(doc, 0)]
+    while stack:
+        obj, depth = stack.pop()
+        if depth > limit:
+            raise InputError(f"{what} nests tables or arrays more than {limit} deep; "
+                             f"fuzzyservo's files nest far less")
+        if isinstance(obj, dict):
+            stack.extend((v, depth + 1) for v in obj.values())
+        elif isinstance(obj, list):
+            stack.extend((v, depth + 1) for v in obj)

@@ -50,7 +50,7 @@ from .dataset import (
     write_chunk,
 )
 from .sampling import Points, points
-from .spec import SAMPLING_SCHEME, UNRECORDED_SCHEME, SweepSpec, canonical_digest
+from .spec import UNRECORDED_SCHEME, SweepSpec, canonical_digest
 
 __all__ = [
     "TAIL_COLUMNS",
@@ -250,9 +250,10 @@ def _check_folder(spec: SweepSpec, out: Path, resume: bool) -> Manifest | None:
                               f"{man.n_chunks} chunks): add --resume to continue it, or give "
                               f"a new folder")
         scheme = man.spec.get("sampling", UNRECORDED_SCHEME)
-        if scheme != SAMPLING_SCHEME:
-            raise InputError(f"{str(out)!r} holds a sweep drawn by sampling scheme {scheme}; "
-                             f"this fuzzyservo draws scheme {SAMPLING_SCHEME}, so --resume "
+        if scheme != spec.sampling_scheme:
+            raise InputError(f"{str(out)!r} holds a sweep drawn by sampling scheme "
+                             f"{scheme!r:.20}; this fuzzyservo draws scheme "
+                             f"{spec.sampling_scheme}, so --resume "
                              f"would mix two draws: give a new folder")
         try:
             recorded = canonical_digest(man.spec)
@@ -454,6 +455,44 @@ def _local_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
             proc.join(timeout=5)
 
 
+#: How long a scheduler has to connect and answer Dask's handshake [s]: ``Client``'s own
+#: timeout covers the connection, not a peer that accepts it and then says nothing.
+SCHEDULER_TIMEOUT = 20.0
+
+
+def _connect(dd: Any, scheduler: str) -> Any:
+    """A ``distributed.Client`` of the scheduler at ``scheduler``, made in a daemon thread
+    waited on for :data:`SCHEDULER_TIMEOUT`. A peer that speaks another protocol (an SSH or
+    HTTP server) makes Dask read its bytes as a frame length and fail with MemoryError, or
+    wait for ever: both are named as "no Dask scheduler answered"."""
+    import threading
+
+    box: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = dd.Client(scheduler, timeout="10s")
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller below
+            box["error"] = exc
+
+    worker = threading.Thread(target=connect, name="fuzzyservo-dask-connect", daemon=True)
+    worker.start()
+    worker.join(SCHEDULER_TIMEOUT)
+    exc = box.get("error")
+    if worker.is_alive() or isinstance(exc, MemoryError):
+        raise InputError(f"--scheduler {scheduler!r}: no Dask scheduler answered at that "
+                         f"address (" + ("something accepted the connection and spoke "
+                                         "another protocol" if exc is not None else
+                                         f"no Dask handshake within {SCHEDULER_TIMEOUT:g} s")
+                         + "); give the address of a dask scheduler, e.g. tcp://host:8786")
+    if isinstance(exc, OSError | TimeoutError | ValueError):
+        why = " ".join(str(exc).split())
+        raise InputError(f"--scheduler {scheduler!r}: cannot connect ({why})") from None
+    if exc is not None:
+        raise exc
+    return box["client"]
+
+
 def _dask_client(workers: int | None, scheduler: str | None) -> tuple[Any, Any]:
     """(client, local cluster or None): connected before the folder is touched, so a bad
     address leaves nothing behind."""
@@ -464,11 +503,7 @@ def _dask_client(workers: int | None, scheduler: str | None) -> tuple[Any, Any]:
                          "installed: pip install 'fuzzyservo[distributed]'") from None
     dd: Any = distributed  # untyped library: calls through Any
     if scheduler is not None:
-        try:
-            return dd.Client(scheduler, timeout="10s"), None
-        except (OSError, TimeoutError, ValueError) as exc:
-            why = " ".join(str(exc).split())
-            raise InputError(f"--scheduler {scheduler!r}: cannot connect ({why})") from None
+        return _connect(dd, scheduler), None
     cluster = dd.LocalCluster(n_workers=int(workers or 1), threads_per_worker=1,
                               processes=True, host="127.0.0.1", dashboard_address=None,
                               silence_logs=40)
