@@ -330,3 +330,112 @@ def test_json_nesting_is_bounded_before_parsing() -> None:
             parse_json(text, "manifest 'm.json'")
     with pytest.raises(InputError, match=r"^j is not valid JSON: Expecting"):
         parse_json("[1,", "j")
+
+
+# ---- output folders: no link followed, their data never replaced (issue 29) --------------
+
+from fuzzyservo._io import confined, refuse_links, result_data_of  # noqa: E402
+
+
+def test_inside_a_confined_folder_a_link_is_refused_not_written_through(
+        tmp_path: Path) -> None:
+    out, victim = tmp_path / "out", tmp_path / "victim.txt"
+    (out / "sub").mkdir(parents=True)
+    victim.write_text("victim\n", encoding="utf-8")
+    (out / "link.csv").symlink_to(victim)
+    (out / "linked").symlink_to(tmp_path, target_is_directory=True)
+    with confined(out):
+        with pytest.raises(OutputError, match="link.csv.* is a symbolic link inside the "
+                                              "output folder"):
+            write_text_atomic(out / "link.csv", "new\n")
+        with pytest.raises(OutputError, match="linked.* is a symbolic link inside"):
+            write_text_atomic(out / "linked" / "victim.txt", "new\n")
+        with pytest.raises(OutputError, match="is a symbolic link"):
+            write_texts_atomic({out / "link.csv": "new\n"})
+        write_text_atomic(out / "sub" / "x.csv", "x\n")  # real folders: written as usual
+    assert victim.read_text(encoding="utf-8") == "victim\n"
+    assert (out / "link.csv").is_symlink()
+    assert (out / "sub" / "x.csv").read_text(encoding="utf-8") == "x\n"
+    assert _visible(out / "sub") == ["x.csv"] and _visible(out) == ["link.csv", "linked", "sub"]
+    write_text_atomic(out / "link.csv", "followed\n")  # outside the block: as documented
+    assert victim.read_text(encoding="utf-8") == "followed\n"
+
+
+def test_a_confined_write_replaces_a_link_put_in_its_place_while_it_writes(
+        tmp_path: Path) -> None:
+    out, victim = tmp_path / "out", tmp_path / "victim.txt"
+    out.mkdir()
+    victim.write_text("victim\n", encoding="utf-8")
+    with confined(out), atomic_write(out / "a.csv") as fh:
+        fh.write("ours\n")
+        (out / "a.csv").symlink_to(victim)  # after the check, before the rename
+    assert victim.read_text(encoding="utf-8") == "victim\n"
+    assert not (out / "a.csv").is_symlink()
+    assert (out / "a.csv").read_text(encoding="utf-8") == "ours\n"
+
+
+def test_refuse_links_names_a_link_or_a_fifo_anywhere_below(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    (out / "traces").mkdir(parents=True)
+    (out / "traces" / "a.csv").write_text("a\n", encoding="utf-8")
+    refuse_links(out, what="output folder")
+    (out / "traces" / "b.csv").symlink_to(tmp_path / "elsewhere.csv")
+    with pytest.raises(OutputError, match="holds a symbolic link, 'traces/b.csv'"):
+        refuse_links(out, what="output folder")
+    refuse_links(out, what="output folder", entries=["manifest.json"])  # only those
+    (out / "traces" / "b.csv").unlink()
+    os.mkfifo(out / "traces" / "c.csv")
+    with pytest.raises(OutputError, match="'traces/c.csv', which is not a regular file"):
+        refuse_links(out, what="output folder")
+
+
+def test_an_output_path_that_would_replace_a_sweep_or_study_file_is_refused(
+        tmp_path: Path) -> None:
+    sweep = tmp_path / "sweep"
+    (sweep / "chunks").mkdir(parents=True)
+    (sweep / "manifest.json").write_text(json.dumps({"digest": "0" * 64, "n_chunks": 1}),
+                                         encoding="utf-8")
+    for rel, what in (("manifest.json", "its manifest"), ("spec.toml", "its spec"),
+                      ("chunks/chunk-000000.parquet", "its chunks")):
+        with pytest.raises(InputError, match=f"would replace {what} \\(the sweep folder"):
+            check_output_path(sweep / rel)
+    assert check_output_path(sweep / "report.html") == sweep / "report.html"
+    study = tmp_path / "study"
+    (study / "traces").mkdir(parents=True)
+    (study / "manifest.json").write_text(json.dumps(
+        {"fuzzyservo": "1", "complete": True, "outputs": {"traces/fig4.csv": "ab"}}),
+        encoding="utf-8")
+    with pytest.raises(InputError, match="would replace an output its manifest lists"):
+        check_output_path(study / "traces" / "fig4.csv")
+    with pytest.raises(InputError, match="would replace its cache"):
+        check_output_path(study / ".cache" / "x.npz")
+    assert result_data_of(study / "notes.txt") is None
+    # a link into the folder is judged where it leads
+    (tmp_path / "m.json").symlink_to(sweep / "manifest.json")
+    assert result_data_of(tmp_path / "m.json") is not None
+    # a manifest.json of some other program makes no folder a result folder
+    other = tmp_path / "web"
+    other.mkdir()
+    (other / "manifest.json").write_text('{"name": "app"}', encoding="utf-8")
+    assert result_data_of(other / "manifest.json") is None
+
+
+def test_nesting_is_bounded_before_parsing_and_strings_do_not_count() -> None:
+    import tomllib
+
+    deep = "[" * 5000 + "]" * 5000
+    with pytest.raises(InputError, match="nests arrays or tables more than 64 levels deep"):
+        parse_json(deep, "x")
+    with pytest.raises(RecursionError):  # what the check spares the parser
+        json.loads(deep)
+    with pytest.raises(InputError, match=r"\(line 2\)"):
+        parse_toml("x = 1\ny = " + "{a = " * 65 + "1" + "}" * 65, "x")
+    brackets = '"' + "[" * 100 + '\\"' + "{" * 100 + '"'
+    assert parse_json("[" + brackets + "]", "x") == ["[" * 100 + '"' + "{" * 100]
+    toml = ("a = '" + "[" * 100 + "'\nb = '''" + "[" * 100 + "''''\n# " + "[" * 100
+            + "\nc = \"\"\"" + "{" * 100 + "\"\"\"\"\"\n")
+    assert parse_toml(toml, "x")["b"] == tomllib.loads(toml)["b"] == "[" * 100 + "'"
+    nested = ".".join(["a"] * 100) + " = 1"  # dotted keys: no bracket; the parsed depth
+    with pytest.raises(InputError, match="more than 64 levels deep"):
+        parse_toml(nested, "x")
+    assert parse_toml("a = [[1, {b = 2}]]", "x") == {"a": [[1, {"b": 2}]]}

@@ -9,6 +9,13 @@ Guarantees (docs/guarantees.md):
   SIGKILL can leave a temporary file behind; its name (``.NAME.XXXXXXXX.tmp``) never is the
   target's. A symbolic link is followed (the file it points at is replaced, the link kept);
   a target that is not a regular file (``/dev/null``, a FIFO) is written directly.
+- Inside an output folder (:func:`confined`: a sweep's, a study's) nothing is followed: every
+  folder below it is opened with ``O_NOFOLLOW``, the temporary file is created in the folder
+  so opened and renamed onto the target's name there, and a target that is a symbolic link
+  or not a regular file is refused (:class:`~fuzzyservo.errors.OutputError`), so no write
+  lands outside the folder.
+- :func:`check_output_path` refuses a path that would replace the data of a sweep or study
+  folder it lies in (:func:`result_data_of`).
 - :func:`read_text` refuses bytes that are not UTF-8 with the file name and the byte offset.
 - Every input file is opened by :func:`open_input`: a regular file only (a FIFO, a device, a
   folder is refused on one line; a FIFO without a writer does not block), and a file read
@@ -24,18 +31,21 @@ Guarantees (docs/guarantees.md):
 from __future__ import annotations
 
 import contextlib
+import contextvars
+import errno
 import hashlib
 import io
 import json
 import math
 import os
 import re
+import secrets
 import signal
 import stat
 import tempfile
 import threading
 import zipfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any, BinaryIO, Literal, overload
 
@@ -47,6 +57,9 @@ __all__ = [
     "Terminated",
     "atomic_write",
     "check_output_path",
+    "confined",
+    "refuse_links",
+    "result_data_of",
     "fsync_folder",
     "npz_inflation",
     "open_input",
@@ -119,8 +132,9 @@ def check_output_path(path: str | Path, *, option: str = "--out",
     ------
     InputError
         ``path`` is a folder or a standard stream (``/dev/stdout``, ``/dev/fd/1``: ``-`` is
-        standard output), its folder does not exist or is not writable, or it names one of
-        ``inputs`` (files the same command reads).
+        standard output), its folder does not exist or is not writable, it names one of
+        ``inputs`` (files the same command reads), or it would replace the data of a sweep
+        or study folder (:func:`result_data_of`).
     """
     p = Path(path)
     if _standard_stream(p):
@@ -128,6 +142,9 @@ def check_output_path(path: str | Path, *, option: str = "--out",
                          f"name, or {option} - where the command writes to standard output")
     if p.is_dir():
         raise InputError(f"{option} {str(p)!r} is a folder; give a file name")
+    why = result_data_of(p)
+    if why is not None:
+        raise InputError(f"{option} {str(p)!r} {why}")
     if p.exists() and not p.is_file():  # /dev/null, a FIFO: written directly
         return p
     parent = Path(os.path.realpath(p)).parent  # where the file really goes (links followed)
@@ -150,6 +167,251 @@ def check_output_path(path: str | Path, *, option: str = "--out",
             raise InputError(f"{option} {str(p)!r} is also an input of this command "
                              f"({str(s)!r}); writing it would destroy the input")
     return p
+
+
+#: Largest manifest :func:`result_data_of` reads to tell whose folder it is [bytes].
+_MANIFEST_SNIFF = 16 << 20
+#: What a sweep folder keeps (``fuzzyservo.sweep.dataset``): first components of a path in it.
+_SWEEP_DATA = {"manifest.json": "its manifest", "spec.toml": "its spec",
+               ".lock": "its lock", "chunks": "its chunks", "report.key": "its report stamp"}
+#: What a study folder keeps besides the outputs its manifest lists (``fuzzyservo.study``).
+_STUDY_DATA = {"manifest.json": "its manifest", ".lock": "its lock", ".cache": "its cache"}
+
+
+def _manifest_doc(path: Path) -> dict[str, Any] | None:
+    """The JSON object in ``path`` (a regular file, at most :data:`_MANIFEST_SNIFF` bytes),
+    or None."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        with os.fdopen(fd, "rb", closefd=False) as fh:
+            data = fh.read(_MANIFEST_SNIFF + 1)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+    if len(data) > _MANIFEST_SNIFF:
+        return None
+    try:
+        doc = json.loads(data.decode("utf-8"))
+    except (ValueError, RecursionError):  # not ours to judge here: the folder's reader says
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def result_data_of(path: str | Path,
+                   kinds: tuple[str, ...] = ("sweep", "study")) -> str | None:
+    """Why writing the file ``path`` would replace the data of a sweep or a study folder it
+    lies in (as written, or with links resolved), or None.
+
+    A folder is a sweep's when it holds ``manifest.json`` and ``chunks/``; its data are the
+    manifest, ``spec.toml``, ``.lock``, ``report.key`` and everything in ``chunks/``. It is a
+    study's when its ``manifest.json`` is a JSON object naming ``fuzzyservo`` (what
+    ``reproduce`` writes); its data are the manifest, ``.lock``, ``.cache/`` and every output
+    the manifest lists. Anything else in such a folder (``D/report.html`` beside a sweep) may
+    be written. ``kinds`` limits the folders looked for (``("sweep",)``)."""
+    seen: set[Path] = set()
+    for target in (Path(os.path.abspath(path)), Path(os.path.realpath(path))):
+        for folder in target.parents:
+            if folder in seen:
+                continue
+            seen.add(folder)
+            rel = target.relative_to(folder)
+            man = folder / "manifest.json"
+            try:
+                if not stat.S_ISREG(os.lstat(man).st_mode):
+                    continue
+            except OSError:
+                continue
+            doc = _manifest_doc(man)
+            if os.path.isdir(folder / "chunks") and (
+                    doc is None or ("digest" in doc and "n_chunks" in doc)):
+                kind, what = "sweep", _SWEEP_DATA.get(rel.parts[0])
+            elif doc is not None and "fuzzyservo" in doc:
+                outputs = doc.get("outputs")
+                listed = isinstance(outputs, dict) and rel.as_posix() in outputs
+                kind = "study"
+                what = _STUDY_DATA.get(rel.parts[0]) or ("an output its manifest lists"
+                                                         if listed else None)
+            else:
+                continue
+            if what is not None and kind in kinds:
+                return (f"would replace {what} (the {kind} folder {str(folder)!r}); write "
+                        f"outside the {kind}'s own files")
+    return None
+
+
+def refuse_links(folder: str | Path, *, what: str,
+                 entries: Iterable[str] | None = None) -> None:
+    """Refuse a symbolic link, or a file that is not a regular file or a folder (a FIFO, a
+    device, a socket), inside the output folder ``folder``: at ``entries`` (paths relative
+    to it; a folder among them is looked through whole), or anywhere below it. ``folder``
+    itself may be a link (the user's choice); nothing below it is followed.
+
+    Raises
+    ------
+    OutputError
+        The message names the entry; fuzzyservo neither reads nor writes through it.
+    """
+    root = Path(folder)
+    todo: list[str] = list(entries) if entries is not None else [
+        e.name for e in _scan(root)]
+    while todo:
+        rel = todo.pop()
+        try:
+            st = os.lstat(root / rel)
+        except FileNotFoundError:
+            continue
+        except OSError as exc:
+            raise OutputError(f"cannot read {what} {str(root)!r}: {_describe(exc)}") from None
+        if stat.S_ISLNK(st.st_mode):
+            raise OutputError(f"{what} {str(root)!r} holds a symbolic link, {rel!r}: "
+                              f"fuzzyservo never writes or reads through a link in its "
+                              f"output folders; remove it or give another folder")
+        if stat.S_ISDIR(st.st_mode):
+            todo.extend(f"{rel}/{e.name}" for e in _scan(root / rel))
+        elif not stat.S_ISREG(st.st_mode):
+            raise OutputError(f"{what} {str(root)!r} holds {rel!r}, which is not a regular "
+                              f"file (a FIFO, device or socket); remove it or give another "
+                              f"folder")
+
+
+def _scan(folder: Path) -> list[os.DirEntry[str]]:
+    try:
+        with os.scandir(folder) as it:
+            return list(it)
+    except FileNotFoundError:
+        return []
+    except OSError as exc:
+        raise OutputError(f"cannot read {str(folder)!r}: {_describe(exc)}") from None
+
+
+_CONFINED: contextvars.ContextVar[tuple[Path, ...]] = contextvars.ContextVar(
+    "fuzzyservo_confined", default=())
+
+
+@contextlib.contextmanager
+def confined(folder: str | Path) -> Iterator[None]:
+    """While the block runs, every write of this module to a path inside ``folder`` (as
+    written: ``folder`` itself may be a link) follows no link: see the module's docstring.
+    A sweep and a study hold it over their output folder (scoped to the block and to the
+    calling context, so other threads and later calls are as before)."""
+    root = Path(os.path.abspath(folder))
+    token = _CONFINED.set((*_CONFINED.get(), root))
+    try:
+        yield
+    finally:
+        _CONFINED.reset(token)
+
+
+def _confined_parts(target: Path) -> tuple[Path, tuple[str, ...]] | None:
+    """(root, components below it) of ``target`` in the outermost confined folder, or None."""
+    a = Path(os.path.abspath(target))
+    for root in sorted(_CONFINED.get(), key=lambda r: len(r.parts)):
+        if a != root and a.is_relative_to(root):
+            return root, a.relative_to(root).parts
+    return None
+
+
+def _open_confined(root: Path, parts: Sequence[str], shown: Path) -> int:
+    """A descriptor of the folder ``root/parts[:-1]``, each folder below ``root`` opened
+    without following a link."""
+    flags = os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC
+    try:
+        fd = os.open(root, flags)
+    except OSError as exc:
+        raise OutputError(f"cannot write {str(shown)!r}: {_describe(exc)}") from None
+    walked = root
+    try:
+        for part in parts[:-1]:
+            try:
+                nfd = os.open(part, flags | os.O_NOFOLLOW, dir_fd=fd)
+            except OSError as exc:
+                link = exc.errno in (errno.ELOOP, errno.ENOTDIR) and _is_link(part, fd)
+                why = (f"{str(walked / part)!r} is a symbolic link inside the output folder "
+                       f"{str(root)!r}; fuzzyservo never writes through one: remove it"
+                       if link else _describe(exc))
+                raise OutputError(f"cannot write {str(shown)!r}: {why}") from None
+            os.close(fd)
+            fd = nfd
+            walked = walked / part
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _is_link(name: str, dir_fd: int) -> bool:
+    try:
+        return stat.S_ISLNK(os.lstat(name, dir_fd=dir_fd).st_mode)
+    except OSError:
+        return False
+
+
+@contextlib.contextmanager
+def _confined_file(root: Path, parts: Sequence[str], shown: Path,
+                   binary: bool) -> Iterator[IO[Any]]:
+    """:func:`_atomic_file` inside a confined folder: no link followed, none written through."""
+    name = parts[-1]
+    dfd = _open_confined(root, parts, shown)
+    tmp: str | None = None
+    done = False
+    try:
+        try:
+            st: os.stat_result | None = os.lstat(name, dir_fd=dfd)
+        except FileNotFoundError:
+            st = None
+        except OSError as exc:
+            raise OutputError(f"cannot write {str(shown)!r}: {_describe(exc)}") from None
+        if st is not None and stat.S_ISLNK(st.st_mode):
+            raise OutputError(f"cannot write {str(shown)!r}: it is a symbolic link inside the "
+                              f"output folder {str(root)!r}; fuzzyservo never writes through "
+                              f"one: remove it")
+        if st is not None and not stat.S_ISREG(st.st_mode):
+            raise OutputError(f"cannot write {str(shown)!r}: it is not a regular file (a "
+                              f"folder, FIFO or device) inside the output folder "
+                              f"{str(root)!r}; remove it")
+        if st is not None:
+            mode = st.st_mode & 0o7777
+        else:
+            mask = os.umask(0)
+            os.umask(mask)
+            mode = 0o666 & ~mask
+        flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
+        while True:
+            cand = f".{name}.{secrets.token_hex(4)}.tmp"
+            try:
+                fd = os.open(cand, flags, 0o600, dir_fd=dfd)
+            except FileExistsError:
+                continue
+            except OSError as exc:
+                raise OutputError(f"cannot write {str(shown)!r}: {_describe(exc)}") from None
+            tmp = cand
+            break
+        try:
+            fh: IO[Any] = (os.fdopen(fd, "wb") if binary
+                           else os.fdopen(fd, "w", encoding="utf-8", newline=""))
+            with fh:
+                yield fh
+                fh.flush()
+                os.fsync(fh.fileno())
+                os.fchmod(fh.fileno(), mode)
+            os.replace(tmp, name, src_dir_fd=dfd, dst_dir_fd=dfd)  # replaces a link put
+            done = True                                             # there since: no write
+            with contextlib.suppress(OSError):                      # goes through it
+                os.fsync(dfd)
+        except OSError as exc:
+            raise OutputError(f"cannot write {str(shown)!r}: {_describe(exc)}; the previous "
+                              f"file, if any, is unchanged") from None
+    finally:
+        if tmp is not None and not done:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp, dir_fd=dfd)
+        os.close(dfd)
 
 
 def _new_file_mode(target: Path) -> int:
@@ -223,6 +485,11 @@ def fsync_folder(folder: Path) -> None:
 @contextlib.contextmanager
 def _atomic_file(target: Path, binary: bool) -> Iterator[IO[Any]]:
     shown = target  # the name the caller gave, for messages
+    inside = _confined_parts(target)
+    if inside is not None:
+        with _confined_file(*inside, shown, binary) as out:
+            yield out
+        return
     real = Path(os.path.realpath(target))  # a symbolic link keeps pointing at the new file
     if real.exists() and not real.is_file():
         with _direct(real, binary) as out:
@@ -285,6 +552,24 @@ def _signals_deferred() -> Iterator[None]:
             signal.raise_signal(signum)
 
 
+def _texts_target(path: Path) -> Path:
+    """Where :func:`write_texts_atomic` writes ``path``: links resolved, except inside a
+    confined folder, where a link below it is refused and the rename replaces the name."""
+    inside = _confined_parts(path)
+    if inside is None:
+        return Path(os.path.realpath(path))
+    root, parts = inside
+    dfd = _open_confined(root, parts, path)
+    try:
+        if _is_link(parts[-1], dfd):
+            raise OutputError(f"cannot write {str(path)!r}: it is a symbolic link inside the "
+                              f"output folder {str(root)!r}; fuzzyservo never writes through "
+                              f"one: remove it")
+    finally:
+        os.close(dfd)
+    return root.joinpath(*parts)
+
+
 def write_texts_atomic(files: dict[Path, str]) -> list[Path]:
     """Write several UTF-8 files as one: each to a temporary file in its folder, flushed and
     fsynced, then all renamed over their targets with Ctrl-C and SIGTERM held back until the
@@ -299,7 +584,7 @@ def write_texts_atomic(files: dict[Path, str]) -> list[Path]:
     temps: list[tuple[Path, Path]] = []
     try:
         for path, text in files.items():
-            target = Path(os.path.realpath(path))
+            target = _texts_target(Path(path))
             fd, tmp_name = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.",
                                             suffix=".tmp")
             temps.append((Path(tmp_name), target))
@@ -312,8 +597,10 @@ def write_texts_atomic(files: dict[Path, str]) -> list[Path]:
             for tmp, target in temps:
                 os.replace(tmp, target)
             temps = []
-        for folder in dict.fromkeys(Path(os.path.realpath(p)).parent for p in files):
+        for folder in dict.fromkeys(_texts_target(Path(p)).parent for p in files):
             fsync_folder(folder)
+    except OutputError:  # already names the file: not "cannot write ...: cannot write"
+        raise
     except OSError as exc:
         shown = ", ".join(repr(str(p)) for p in files)
         raise OutputError(f"cannot write {shown}: {_describe(exc)}; the previous files, if "
@@ -443,24 +730,48 @@ def read_text(path: str | Path, what: str = "file", limit: int = MAX_INPUT_BYTES
     return text
 
 
-# what may hold brackets without nesting: strings (TOML's four kinds, JSON's one) and comments
-_TOML_SKIP = re.compile(r'"""(?:[^\\]|\\.)*?"""|\'\'\'.*?\'\'\'|"(?:[^"\\\n]|\\.)*"|'
-                        r"'[^'\n]*'|#[^\n]*|[\[\]{}]", re.DOTALL)
-_JSON_SKIP = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]', re.DOTALL)
-
-
-def _check_brackets(text: str, pattern: re.Pattern[str], what: str) -> None:
+def _check_brackets(text: str, what: str, toml: bool) -> None:
+    """Refuse ``text`` if its arrays and tables (``[``, ``{``) nest deeper than
+    :data:`MAX_NESTING`. Strings are skipped (JSON ``"..."`` with escapes; TOML also
+    ``'...'``, ``\"\"\"...\"\"\"`` and ``'''...'''``), and TOML comments. Text that is not
+    valid is left to the parser to refuse: the count is exact up to the first syntax error,
+    and the parser does not read past it."""
     depth = 0
-    for m in pattern.finditer(text):
-        c = m.group()
-        if c in "[{":
+    i, n = 0, len(text)
+    while i < n:
+        ch = text[i]
+        if ch in "[{":
             depth += 1
             if depth > MAX_NESTING:
+                line = text.count("\n", 0, i) + 1
                 raise InputError(f"{what} nests arrays or tables more than {MAX_NESTING} "
-                                 f"levels deep (at character {m.start()}); at most "
-                                 f"{MAX_NESTING} are read")
-        elif c in "]}":
-            depth = max(depth - 1, 0)
+                                 f"levels deep (line {line}); at most {MAX_NESTING} are read")
+        elif ch in "]}":
+            depth = max(0, depth - 1)
+        elif ch == "#" and toml:
+            j = text.find("\n", i)
+            i = n if j < 0 else j
+            continue
+        elif ch == '"' or (ch == "'" and toml):
+            triple = toml and text.startswith(ch * 3, i)
+            quote = ch * 3 if triple else ch
+            j = i + len(quote)
+            escapes = ch == '"'
+            while j < n:
+                if escapes and text[j] == "\\":
+                    j += 2
+                    continue
+                if text.startswith(quote, j):
+                    break
+                if not triple and text[j] == "\n":  # an unclosed string: the parser says so
+                    break
+                j += 1
+            if triple:  # a closing run of up to five quotes keeps one or two in the string
+                while j + len(quote) < n and text[j + len(quote)] == ch:
+                    j += 1
+            i = j + len(quote)
+            continue
+        i += 1
 
 
 def _check_depth(obj: Any, what: str) -> None:
@@ -488,7 +799,7 @@ def parse_toml(text: str, what: str) -> dict[str, Any]:
     """
     import tomllib
 
-    _check_brackets(text, _TOML_SKIP, what)
+    _check_brackets(text, what, toml=True)
     try:
         doc = tomllib.loads(text)
     except ValueError as exc:  # TOMLDecodeError, or an integer of > 4300 digits
@@ -509,7 +820,7 @@ def parse_json(text: str, what: str) -> Any:
     InputError
         The text is not JSON (the parser's reason, on one line), or nests too deep.
     """
-    _check_brackets(text, _JSON_SKIP, what)
+    _check_brackets(text, what, toml=False)
     try:
         return json.loads(text)
     except ValueError as exc:  # JSONDecodeError, or an integer of > 4300 digits

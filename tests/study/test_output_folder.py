@@ -237,3 +237,28 @@ def test_reproduce_interrupted_by_ctrl_c_at_random_points(tmp_path: Path) -> Non
     seen = _kill_reproduce(signal.SIGINT, 10, 8, tmp_path)
     assert all(code in (0, 130) for code, _ in seen), seen
     assert sum(code == 130 for code, _ in seen) >= 7, seen
+
+
+@pytest.mark.parametrize("link", ["traces/fig4-linear.csv", "report.html", ".lock",
+                                  ".cache"])
+def test_a_link_inside_the_folder_is_refused_and_its_target_untouched(
+        link: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 29: a symlinked traces/*.csv or report.html had its target overwritten (and
+    the lock, opened "a+" and truncated, its target emptied). Refused before any work."""
+    out = tmp_path / "rp"
+    (out / "traces").mkdir(parents=True)
+    victim = tmp_path / "victim"
+    victim.write_text("victim\n", encoding="utf-8")
+    if link == ".cache":
+        victim.unlink()
+        victim.mkdir()
+        (victim / "keep.txt").write_text("victim\n", encoding="utf-8")
+    (out / link).symlink_to(victim)
+    assert main(["reproduce", "--out", str(out), "--plant", "linear", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"holds a symbolic link, {link!r}" in err, err
+    kept = victim / "keep.txt" if link == ".cache" else victim
+    assert kept.read_text(encoding="utf-8") == "victim\n"
+    assert sorted(p.name for p in out.iterdir()) == sorted({"traces", link.split("/")[0]}
+                                                           | ({".lock"} if link != ".lock"
+                                                              else set()))

@@ -38,7 +38,15 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from .._io import sha256_file, strict_json, write_text_atomic
+from .._io import (
+    confined,
+    parse_json,
+    refuse_links,
+    result_data_of,
+    sha256_file,
+    strict_json,
+    write_text_atomic,
+)
 from ..analysis.autotune import (
     RESTART_TOLERANCE,
     TunedGains,
@@ -236,8 +244,9 @@ def _notes(plant: str, tuned: Mapping[str, TunedGains]) -> dict[str, str]:
 
 def _read_manifest(out: Path) -> dict[str, Any] | None:
     try:
-        doc = json.loads((out / MANIFEST).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        text = (out / MANIFEST).read_text(encoding="utf-8")
+        doc = parse_json(text, f"{str(out / MANIFEST)!r}")
+    except (OSError, ValueError):  # InputError of the nesting check included: unreadable
         return None
     return doc if isinstance(doc, dict) else None
 
@@ -329,18 +338,30 @@ def reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None = None,
         raise InputError(f"--out {str(out)!r} exists and is not a directory")
     if gains_dir is not None and not retune_gains and not Path(gains_dir).is_dir():
         raise InputError(f"--gains-dir {str(gains_dir)!r} is not a folder")
+    why = result_data_of(out / MANIFEST, kinds=("sweep",))  # a sweep's folder, or in one
+    if why is not None:
+        raise InputError(f"--out {str(out)!r}: writing the study there {why}")
     out.mkdir(parents=True, exist_ok=True)
+    refuse_links(out, what="output folder", entries=[".lock"])
     with _folder_lock(out):
-        return _reproduce(out, cfg, gains_dir=gains_dir, retune_gains=retune_gains,
-                          force=force, plants=plants, version=version, progress=progress,
-                          meta=meta, warn=warn, extra=extra)
+        refuse_links(out, what="output folder")  # under the lock: nothing followed below
+        with confined(out):
+            return _reproduce(out, cfg, gains_dir=gains_dir, retune_gains=retune_gains,
+                              force=force, plants=plants, version=version,
+                              progress=progress, meta=meta, warn=warn, extra=extra)
 
 
 @contextlib.contextmanager
 def _folder_lock(out: Path) -> Iterator[None]:
     """Hold ``OUT/.lock`` for the run: a second run on the same folder would delete the
     first one's temporary files and interleave its outputs, so it is refused."""
-    with (out / ".lock").open("a+") as fh:
+    flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+    try:
+        fd = os.open(out / ".lock", flags, 0o666)  # never through a link: it is written
+    except OSError as exc:
+        raise InputError(f"cannot lock {str(out / '.lock')!r}: "
+                         f"{exc.strerror or exc}") from None
+    with os.fdopen(fd, "a+") as fh:
         try:
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

@@ -19,18 +19,28 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
-import json
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .._io import read_text, sha256_file, strict_json, write_bytes_atomic, write_text_atomic
-from ..errors import InputError, OutputError
+from .._io import (
+    parse_json,
+    read_text,
+    refuse_links,
+    sha256_file,
+    strict_json,
+    write_bytes_atomic,
+    write_text_atomic,
+)
+from ..errors import InputError
 
 __all__ = [
+    "FOLDER_ENTRIES",
     "FORMAT",
     "Manifest",
+    "check_folder_entries",
     "chunk_path",
     "read_manifest",
     "read_table",
@@ -109,30 +119,129 @@ class Manifest:
                    created=_dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"))
 
 
+#: Keys of ``manifest.json`` (``complete`` is derived, the rest are :class:`Manifest`'s).
+_MANIFEST_KEYS = ("format", "fuzzyservo_version", "created", "digest", "n_points",
+                  "n_chunks", "n_runs", "complete", "columns", "chunks", "spec")
+_SHA256_RE = re.compile(r"^[0-9a-f]{64}$")
+
+
+def _count(doc: dict[str, Any], key: str) -> int:
+    v = doc.get(key)
+    if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+        raise ValueError(f"{key} must be a non-negative integer, got {v!r}")
+    return v
+
+
+def _parse_manifest(doc: Any) -> Manifest:
+    """A :class:`Manifest` from parsed JSON; ValueError naming the first field that is not
+    what fuzzyservo writes."""
+    if not isinstance(doc, dict):
+        raise ValueError(f"it holds {type(doc).__name__}, not a JSON object")
+    if doc.get("format") != FORMAT:
+        raise _FormatMismatch(doc.get("format"))
+    extra = sorted(set(doc) - set(_MANIFEST_KEYS))
+    if extra:
+        raise ValueError(f"unknown key {extra[0][:80]!r}; a manifest has "
+                         f"{', '.join(_MANIFEST_KEYS)}")
+    missing = [k for k in _MANIFEST_KEYS if k not in doc and k != "complete"]
+    if missing:
+        raise ValueError(f"it lacks {missing[0]!r}")
+    digest = doc["digest"]
+    if not isinstance(digest, str) or not _SHA256_RE.match(digest):
+        raise ValueError(f"digest must be 64 hex digits (a SHA-256), got {digest!r:.80}")
+    n_points, n_chunks, n_runs = (_count(doc, k) for k in ("n_points", "n_chunks", "n_runs"))
+    columns = doc["columns"]
+    if not isinstance(columns, list) or not all(isinstance(c, str) for c in columns):
+        raise ValueError("columns must be a list of names")
+    spec = doc["spec"]
+    if not isinstance(spec, dict):
+        raise ValueError(f"spec must be a JSON object, got {type(spec).__name__}")
+    for key in ("fuzzyservo_version", "created"):
+        if not isinstance(doc[key], str):
+            raise ValueError(f"{key} must be a string, got {doc[key]!r:.80}")
+    raw = doc["chunks"]
+    if not isinstance(raw, dict):
+        raise ValueError(f"chunks must be a JSON object, got {type(raw).__name__}")
+    chunks: dict[str, dict[str, Any]] = {}
+    for k, v in raw.items():
+        if not (len(k) <= 12 and k.isascii() and k.isdigit() and str(int(k)) == k
+                and int(k) < n_chunks):
+            raise ValueError(f"chunk {k[:40]!r} is not a chunk number in [0, {n_chunks})")
+        if not isinstance(v, dict) or set(v) != {"rows", "sha256"}:
+            raise ValueError(f"chunk {k} must be {{\"rows\": N, \"sha256\": ...}}, got "
+                             f"{v!r:.80}")
+        try:
+            rows = _count(v, "rows")
+        except ValueError as exc:
+            raise ValueError(f"chunk {k}'s {exc}") from None
+        if not isinstance(v["sha256"], str) or not _SHA256_RE.match(v["sha256"]):
+            raise ValueError(f"chunk {k}'s sha256 must be 64 hex digits, got "
+                             f"{v['sha256']!r:.80}")
+        chunks[k] = {"rows": rows, "sha256": v["sha256"]}
+    return Manifest(digest=digest, spec=spec, n_points=n_points, n_chunks=n_chunks,
+                    n_runs=n_runs, columns=columns, chunks=chunks,
+                    version=doc["fuzzyservo_version"], created=doc["created"], format=FORMAT)
+
+
+class _FormatMismatch(Exception):
+    def __init__(self, found: Any) -> None:
+        super().__init__(found)
+        self.found = found
+
+
+#: What of a sweep folder fuzzyservo reads and writes (nothing in it may be a link).
+FOLDER_ENTRIES = ("manifest.json", "spec.toml", ".lock", "chunks", "report.key")
+
+
+def check_folder_entries(out: Path) -> None:
+    """Refuse a sweep folder whose own files are links, special files, or whose ``chunks``
+    is not a folder (:func:`fuzzyservo._io.refuse_links`).
+
+    Raises
+    ------
+    OutputError
+        A link or a special file among them.
+    InputError
+        ``chunks`` is not a folder: the folder is corrupted.
+    """
+    refuse_links(out, what="sweep folder", entries=FOLDER_ENTRIES)
+    chunks = Path(out) / "chunks"
+    if not chunks.is_dir():
+        raise InputError(f"sweep folder {str(out)!r} is corrupted: {str(chunks)!r} is "
+                         + ("missing" if not chunks.exists() else "not a folder")
+                         + "; give another folder (its chunks cannot be trusted)")
+    with os.scandir(chunks) as it:
+        for e in it:
+            if _CHUNK_RE.match(e.name) and not e.is_file(follow_symlinks=False):
+                raise InputError(f"sweep folder {str(out)!r} is corrupted: chunk "
+                                 f"{e.name!r} is not a file; give another folder")
+
+
 def read_manifest(out: Path) -> Manifest:
-    """Read ``DIR/manifest.json``.
+    """Read ``DIR/manifest.json``: nesting bounded before parsing, every field checked.
 
     Raises
     ------
     InputError
-        No manifest, or one that is not a sweep's.
+        No manifest, or one that is not a sweep's (the message names the field), or a
+        folder that is corrupted (``chunks`` not a folder).
+    OutputError
+        A link or a special file among the folder's own files.
     """
     path = Path(out) / "manifest.json"
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise InputError(f"{str(out)!r} is not a sweep folder (no manifest.json)")
+    check_folder_entries(Path(out))
+    text = read_text(path, "sweep manifest")
     try:
-        doc = json.loads(read_text(path, "sweep manifest"))
-        if doc.get("format") != FORMAT:
-            raise InputError(f"{str(path)!r} has layout format {doc.get('format')!r}; this "
-                             f"fuzzyservo reads format {FORMAT}")
-        return Manifest(digest=str(doc["digest"]), spec=dict(doc["spec"]),
-                        n_points=int(doc["n_points"]), n_chunks=int(doc["n_chunks"]),
-                        n_runs=int(doc["n_runs"]), columns=list(doc["columns"]),
-                        chunks={str(k): dict(v) for k, v in doc["chunks"].items()},
-                        version=str(doc.get("fuzzyservo_version", "")),
-                        created=str(doc.get("created", "")), format=FORMAT)
-    except (ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise InputError(f"{str(path)!r} is not a valid sweep manifest ({exc})") from None
+        return _parse_manifest(parse_json(text, "its JSON"))  # nesting bounded
+    except _FormatMismatch as exc:
+        raise InputError(f"{str(path)!r} has layout format {exc.found!r:.40}; this "
+                         f"fuzzyservo reads format {FORMAT}") from None
+    except ValueError as exc:  # parse_json's InputError included
+        why = " ".join(str(exc).split())[:200]
+        raise InputError(f"sweep manifest {str(path)!r} is corrupted: {why}; give another "
+                         f"folder, or start the sweep afresh in a new one") from None
 
 
 def write_chunk(out: Path, c: int, table: Any) -> dict[str, Any]:
@@ -143,11 +252,7 @@ def write_chunk(out: Path, c: int, table: Any) -> dict[str, Any]:
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink, compression="zstd")
     data = sink.getvalue().to_pybytes()
-    path = chunk_path(out, c)
-    try:
-        write_bytes_atomic(path, data)
-    except OSError as exc:  # pragma: no cover - write_bytes_atomic raises OutputError
-        raise OutputError(f"cannot write {str(path)!r}: {exc}") from None
+    write_bytes_atomic(chunk_path(out, c), data)  # its OutputError names the file once
     return {"rows": int(table.num_rows), "sha256": hashlib.sha256(data).hexdigest()}
 
 

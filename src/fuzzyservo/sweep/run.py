@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from .._io import sha256_file
+from .._io import confined, refuse_links, sha256_file
 from .._typing import FloatArray
 from ..analysis.outcome import TAIL_FRACTION, classify
 from ..errors import FuzzyServoError, InputError, OutputError, ParameterError
@@ -40,9 +40,17 @@ from ..sim import simulate_batch
 from ..sim.closed_loop import check_delay, plant_limits, time_grid
 from ..sim.references import Step, check_reference, check_reference_samples, parse_reference
 from ..sim.stepinfo import METRIC_NAMES
-from .dataset import Manifest, adopt, chunk_path, finished_files, read_manifest, write_chunk
+from .dataset import (
+    FOLDER_ENTRIES,
+    Manifest,
+    adopt,
+    chunk_path,
+    finished_files,
+    read_manifest,
+    write_chunk,
+)
 from .sampling import Points, points
-from .spec import SAMPLING_SCHEME, UNRECORDED_SCHEME, SweepSpec, canonical_digest
+from .spec import UNRECORDED_SCHEME, SweepSpec, canonical_digest
 
 __all__ = [
     "TAIL_COLUMNS",
@@ -235,17 +243,26 @@ def _check_folder(spec: SweepSpec, out: Path, resume: bool) -> Manifest | None:
     """Refuse a folder the sweep must not write (read-only); its manifest when resuming."""
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {str(out)!r} is a file; give a folder for the sweep")
-    if (out / "manifest.json").exists():
-        man = read_manifest(out)
+    if os.path.lexists(out / "manifest.json"):
+        man = read_manifest(out)  # checks the folder's own files: no link, chunks a folder
         if not resume:
             raise OutputError(f"{str(out)!r} already holds a sweep ({len(man.chunks)} of "
                               f"{man.n_chunks} chunks): add --resume to continue it, or give "
                               f"a new folder")
         scheme = man.spec.get("sampling", UNRECORDED_SCHEME)
-        if scheme != SAMPLING_SCHEME:
-            raise InputError(f"{str(out)!r} holds a sweep drawn by sampling scheme {scheme}; "
-                             f"this fuzzyservo draws scheme {SAMPLING_SCHEME}, so --resume "
+        if scheme != spec.sampling_scheme:
+            raise InputError(f"{str(out)!r} holds a sweep drawn by sampling scheme "
+                             f"{scheme!r:.20}; this fuzzyservo draws scheme "
+                             f"{spec.sampling_scheme}, so --resume "
                              f"would mix two draws: give a new folder")
+        try:
+            recorded = canonical_digest(man.spec)
+        except (TypeError, ValueError):
+            recorded = ""
+        if recorded != man.digest:
+            raise InputError(f"sweep manifest {str(out / 'manifest.json')!r} is corrupted: "
+                             f"its digest is not that of the spec it records; give another "
+                             f"folder, or start the sweep afresh in a new one")
         canon = spec.canonical()
         if "sampling" not in man.spec:  # written before the scheme was recorded
             del canon["sampling"]
@@ -255,6 +272,19 @@ def _check_folder(spec: SweepSpec, out: Path, resume: bool) -> Manifest | None:
             raise InputError(f"{str(out)!r} holds a different sweep (its spec differs in "
                              f"{', '.join(diff) or 'its files'}); --resume continues only the "
                              f"same spec: give a new folder")
+        if (man.n_points, man.n_chunks, man.n_runs) != (spec.n_points, spec.n_chunks,
+                                                        spec.n_runs):
+            raise InputError(f"sweep manifest {str(out / 'manifest.json')!r} is corrupted: "
+                             f"it counts {man.n_points} points, {man.n_chunks} chunks and "
+                             f"{man.n_runs} runs, its spec {spec.n_points}, {spec.n_chunks} "
+                             f"and {spec.n_runs}; give another folder")
+        for c, entry in man.chunks.items():
+            lo, hi = spec.chunk_range(int(c))
+            if entry["rows"] != (hi - lo) * len(spec.controllers):
+                raise InputError(f"sweep manifest {str(out / 'manifest.json')!r} is "
+                                 f"corrupted: chunk {c} has {entry['rows']} rows, the spec "
+                                 f"gives it {(hi - lo) * len(spec.controllers)}; give "
+                                 f"another folder")
         return man
     if out.is_dir() and any(out.iterdir()):
         raise OutputError(f"--out {str(out)!r} is a folder that is not empty and holds no "
@@ -264,30 +294,25 @@ def _check_folder(spec: SweepSpec, out: Path, resume: bool) -> Manifest | None:
     return None
 
 
-def _prepare(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None) -> Manifest:
-    """Create the folder and manifest, or check and reopen them for a resume."""
-    man = _check_folder(spec, out, resume)
-    if man is not None:
-        for tmp in (out / "chunks").glob(".chunk-*.tmp"):  # left by a kill mid-write
-            tmp.unlink(missing_ok=True)
-        changed = False
-        for c in sorted(man.done):  # a listed chunk must be there, as it was written
-            path = chunk_path(out, c)
-            if not path.is_file() or sha256_file(path) != man.chunks[str(c)]["sha256"]:
-                del man.chunks[str(c)]
-                path.unlink(missing_ok=True)
-                changed = True
-        adopted = False
-        for c, _path in finished_files(out).items():
-            if str(c) not in man.chunks and c < man.n_chunks:
-                lo, hi = spec.chunk_range(c)
-                adopted |= adopt(out, man, c, (hi - lo) * len(spec.controllers))
-        if adopted or changed:
-            man.write(out)
-        return man
-    man = Manifest.new(spec.digest, spec.canonical(), spec.n_points, spec.n_chunks, spec.n_runs,
-                       columns(spec))
-    _create_folder(out, man, spec_text)
+def _reopen(spec: SweepSpec, out: Path, man: Manifest) -> Manifest:
+    """Check and reopen a sweep's folder for a resume; called with its lock held (what it
+    removes could otherwise be another sweep's temporary files)."""
+    for tmp in (out / "chunks").glob(".chunk-*.tmp"):  # left by a kill mid-write
+        tmp.unlink(missing_ok=True)
+    changed = False
+    for c in sorted(man.done):  # a listed chunk must be there, as it was written
+        path = chunk_path(out, c)
+        if not path.is_file() or sha256_file(path) != man.chunks[str(c)]["sha256"]:
+            del man.chunks[str(c)]
+            path.unlink(missing_ok=True)
+            changed = True
+    adopted = False
+    for c, _path in finished_files(out).items():
+        if str(c) not in man.chunks and c < man.n_chunks:
+            lo, hi = spec.chunk_range(c)
+            adopted |= adopt(out, man, c, (hi - lo) * len(spec.controllers))
+    if adopted or changed:
+        man.write(out)
     return man
 
 
@@ -301,12 +326,14 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
-def _create_folder(out: Path, man: Manifest, spec_text: str | None) -> None:
-    """Create a new sweep's folder as one step: ``chunks/``, ``spec.toml`` and the manifest
-    are written into a hidden sibling, ``.NAME.new-PID``, renamed onto ``out`` (absent, or
-    an empty folder) at the end. An interruption before the rename leaves ``out`` as it was
-    (a rerun of the same command starts afresh, a reproduce finds no half-made sweep);
-    siblings left by killed sweeps are removed here."""
+def _create_folder(out: Path, man: Manifest, spec_text: str | None) -> int:
+    """Create a new sweep's folder as one step: ``chunks/``, ``spec.toml``, the manifest and
+    ``.lock`` are written into a hidden sibling, ``.NAME.new-PID``, renamed onto ``out``
+    (absent, or an empty folder) at the end, and the lock is taken before the rename, so the
+    folder is never seen unlocked while this sweep runs. Returns the lock's descriptor. An
+    interruption before the rename leaves ``out`` as it was (a rerun of the same command
+    starts afresh, a reproduce finds no half-made sweep); siblings left by killed sweeps are
+    removed here."""
     import shutil
 
     from .._io import fsync_folder, write_text_atomic
@@ -323,8 +350,10 @@ def _create_folder(out: Path, man: Manifest, spec_text: str | None) -> None:
         raise OutputError(f"cannot create {str(out)!r}: {exc.strerror or exc}") from None
     tmp = parent / f"{prefix}{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)
+    lock = -1
     try:
         (tmp / "chunks").mkdir(parents=True)
+        lock = _lock(tmp, out)
         if spec_text is not None:
             write_text_atomic(tmp / "spec.toml", spec_text)
         man.write(tmp)
@@ -332,10 +361,15 @@ def _create_folder(out: Path, man: Manifest, spec_text: str | None) -> None:
         fsync_folder(parent)  # and durable, as the chunks' renames are
     except OSError as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        if lock >= 0:
+            os.close(lock)
         raise OutputError(f"cannot create {str(out)!r}: {exc.strerror or exc}") from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
+        if lock >= 0:
+            os.close(lock)
         raise
+    return lock
 
 
 @contextlib.contextmanager
@@ -421,6 +455,44 @@ def _local_chunks(spec: SweepSpec, todo: list[int], controllers: Sequence[Any],
             proc.join(timeout=5)
 
 
+#: How long a scheduler has to connect and answer Dask's handshake [s]: ``Client``'s own
+#: timeout covers the connection, not a peer that accepts it and then says nothing.
+SCHEDULER_TIMEOUT = 20.0
+
+
+def _connect(dd: Any, scheduler: str) -> Any:
+    """A ``distributed.Client`` of the scheduler at ``scheduler``, made in a daemon thread
+    waited on for :data:`SCHEDULER_TIMEOUT`. A peer that speaks another protocol (an SSH or
+    HTTP server) makes Dask read its bytes as a frame length and fail with MemoryError, or
+    wait for ever: both are named as "no Dask scheduler answered"."""
+    import threading
+
+    box: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = dd.Client(scheduler, timeout="10s")
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller below
+            box["error"] = exc
+
+    worker = threading.Thread(target=connect, name="fuzzyservo-dask-connect", daemon=True)
+    worker.start()
+    worker.join(SCHEDULER_TIMEOUT)
+    exc = box.get("error")
+    if worker.is_alive() or isinstance(exc, MemoryError):
+        raise InputError(f"--scheduler {scheduler!r}: no Dask scheduler answered at that "
+                         f"address (" + ("something accepted the connection and spoke "
+                                         "another protocol" if exc is not None else
+                                         f"no Dask handshake within {SCHEDULER_TIMEOUT:g} s")
+                         + "); give the address of a dask scheduler, e.g. tcp://host:8786")
+    if isinstance(exc, OSError | TimeoutError | ValueError):
+        why = " ".join(str(exc).split())
+        raise InputError(f"--scheduler {scheduler!r}: cannot connect ({why})") from None
+    if exc is not None:
+        raise exc
+    return box["client"]
+
+
 def _dask_client(workers: int | None, scheduler: str | None) -> tuple[Any, Any]:
     """(client, local cluster or None): connected before the folder is touched, so a bad
     address leaves nothing behind."""
@@ -431,11 +503,7 @@ def _dask_client(workers: int | None, scheduler: str | None) -> tuple[Any, Any]:
                          "installed: pip install 'fuzzyservo[distributed]'") from None
     dd: Any = distributed  # untyped library: calls through Any
     if scheduler is not None:
-        try:
-            return dd.Client(scheduler, timeout="10s"), None
-        except (OSError, TimeoutError, ValueError) as exc:
-            why = " ".join(str(exc).split())
-            raise InputError(f"--scheduler {scheduler!r}: cannot connect ({why})") from None
+        return _connect(dd, scheduler), None
     cluster = dd.LocalCluster(n_workers=int(workers or 1), threads_per_worker=1,
                               processes=True, host="127.0.0.1", dashboard_address=None,
                               silence_logs=40)
@@ -532,31 +600,65 @@ def run_sweep(spec: SweepSpec, out: str | Path, *, resume: bool = False,
             cluster.close()
 
 
-@contextlib.contextmanager
-def _folder_lock(out: Path) -> Iterator[None]:
-    """Hold ``DIR/.lock`` while the sweep writes: a second sweep on the folder is refused."""
+def _lock(folder: Path, shown: Path) -> int:
+    """Open ``folder/.lock`` (never through a link) and take it; its descriptor.
+
+    Raises
+    ------
+    OutputError
+        Another sweep holds it, or it is a link.
+    """
     import fcntl
 
-    with (out / ".lock").open("a+") as fh:
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise OutputError(f"another fuzzyservo sweep is writing {str(out)!r}; wait for it "
-                              f"to finish or give another --out") from None
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
+    flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+    try:
+        fd = os.open(folder / ".lock", flags, 0o666)
+    except OSError as exc:
+        why = ("it is a symbolic link; fuzzyservo never writes through a link in its output "
+               "folders: remove it" if os.path.islink(folder / ".lock")
+               else exc.strerror or str(exc))
+        raise OutputError(f"cannot lock {str(shown / '.lock')!r}: {why}") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        raise OutputError(f"another fuzzyservo sweep is writing {str(shown)!r}; wait for it "
+                          f"to finish or give another --out") from None
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
 
 
 def _run(spec: SweepSpec, out: Path, resume: bool, spec_text: str | None,
          processes: int | None, workers: int | None, client: Any, progress: bool | None,
          on_chunk: Callable[[int], None] | None,
          on_start: Callable[[Manifest, int], None] | None) -> Manifest:
-    man = _prepare(spec, out, resume, spec_text)
-    with _folder_lock(out):
-        return _run_locked(spec, out, man, processes, workers, client, progress, on_chunk,
-                           on_start)
+    """Take the folder's lock before anything in it is touched (a new folder is locked
+    before it appears), check it again under the lock (another sweep may have changed it
+    since the check without it), then run."""
+    if os.path.lexists(out / "manifest.json"):
+        refuse_links(out, what="sweep folder", entries=FOLDER_ENTRIES)  # .lock among them
+        lock = _lock(out, out)
+        try:
+            man = _check_folder(spec, out, resume)
+            assert man is not None  # a folder with a manifest is a sweep, or is refused
+            with confined(out):
+                man = _reopen(spec, out, man)
+        except BaseException:
+            os.close(lock)
+            raise
+    else:
+        _check_folder(spec, out, resume)  # a folder that is not empty, --resume of nothing
+        man = Manifest.new(spec.digest, spec.canonical(), spec.n_points, spec.n_chunks,
+                           spec.n_runs, columns(spec))
+        lock = _create_folder(out, man, spec_text)
+    try:
+        with confined(out):
+            return _run_locked(spec, out, man, processes, workers, client, progress,
+                               on_chunk, on_start)
+    finally:
+        os.close(lock)  # releases the lock
 
 
 def _run_locked(spec: SweepSpec, out: Path, man: Manifest, processes: int | None,

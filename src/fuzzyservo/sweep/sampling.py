@@ -26,12 +26,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import ndtr, ndtri
+from scipy.special import log_ndtr, ndtr, ndtri, ndtri_exp
 
 from .._typing import FloatArray, IntArray
 from .spec import SweepSpec, Variation
 
-__all__ = ["Points", "counter_uniform", "points", "transform"]
+__all__ = ["Points", "counter_uniform", "in_log_tail", "points", "transform"]
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -80,17 +80,64 @@ def _exp(x: FloatArray) -> FloatArray:
                     dtype=np.float64).reshape(np.shape(x))
 
 
+#: Below this tail probability the interval's Φ values are drawn in logarithms: Φ(-37.5)
+#: is already subnormal and Φ(-38.5) is 0, so a bound 40 standard deviations out put
+#: every draw on the far bound.
+_LOG_TAIL = 1e-300
+
+
+def _tail_in_logs(q: FloatArray, a: float, b: float) -> FloatArray:
+    """The standard normal truncated to [a, b], b <= 0 far in the lower tail, at the
+    quantiles 1 - ``q``, in logarithms: p = Φ(b) (1 - q (1 - Φ(a)/Φ(b))), log p from log Φ
+    and ``log1p``, z = Φ⁻¹(exp(log p)) by ``ndtri_exp``. Every step keeps its relative
+    precision however small Φ(b) is."""
+    la, lb = float(log_ndtr(a)), float(log_ndtr(b))
+    width = -math.expm1(la - lb)  # 1 - Φ(a)/Φ(b), in (0, 1]
+    with np.errstate(divide="ignore"):  # q (1 - Φ(a)/Φ(b)) = 1: z = -inf, clipped to a
+        return np.asarray(ndtri_exp(lb + np.log1p(-q * width)), dtype=np.float64)
+
+
 def _truncated_std_normal(u: FloatArray, a: float, b: float) -> FloatArray:
     """The standard normal truncated to [a, b] at the quantiles ``u``. In the upper tail
     (a > 0) Φ rounds to 1 and the interval would vanish: there the lower tail's
-    Φ(-x) = 1 - Φ(x) is used, which keeps its digits."""
+    Φ(-x) = 1 - Φ(x) is used, which keeps its digits; an interval so far out that even the
+    tail's Φ underflows (beyond about 37 standard deviations) is drawn in logarithms
+    (:func:`_tail_in_logs`; the draws of every other interval are as before, bit for
+    bit)."""
     if a > 0.0:
         lo, hi = float(ndtr(-b)), float(ndtr(-a))
-        z = -ndtri(hi - u * (hi - lo))
+        if hi < _LOG_TAIL:
+            z = -_tail_in_logs(u, -b, -a)  # the mirror image, at 1 - u
+        else:
+            z = -ndtri(hi - u * (hi - lo))
     else:
         lo, hi = float(ndtr(a)), float(ndtr(b))
-        z = ndtri(lo + u * (hi - lo))
+        if hi < _LOG_TAIL:
+            z = _tail_in_logs(1.0 - u, a, b)
+        else:
+            z = ndtri(lo + u * (hi - lo))
     return np.clip(z, a, b)  # rounding of Φ⁻¹ near the bounds: stay inside them
+
+
+def _standard_bounds(var: Variation) -> tuple[float, float]:
+    """The bounds of a normal or log-normal variation in standard units (a, b)."""
+    lo, hi = var.arg("low", -math.inf), var.arg("high", math.inf)
+    if var.distribution == "normal":
+        mean, std = var.arg("mean"), var.arg("std")
+        return (lo - mean) / std, (hi - mean) / std
+    med, sig = var.arg("median"), var.arg("sigma")
+    a = math.log(lo / med) / sig if lo > 0.0 else -math.inf
+    b = math.log(hi / med) / sig if math.isfinite(hi) else math.inf
+    return a, b
+
+
+def in_log_tail(var: Variation) -> bool:
+    """Whether a variation's draws are made in logarithms (:func:`_tail_in_logs`): a normal
+    or log-normal truncated to an interval so far in a tail that its Φ underflows."""
+    if var.distribution not in ("normal", "log-normal"):
+        return False
+    a, b = _standard_bounds(var)
+    return float(ndtr(-a) if a > 0.0 else ndtr(b)) < _LOG_TAIL
 
 
 def transform(var: Variation, u: FloatArray) -> FloatArray:
@@ -103,12 +150,10 @@ def transform(var: Variation, u: FloatArray) -> FloatArray:
         return _exp(a + (b - a) * u)
     if var.distribution == "normal":
         mean, std = var.arg("mean"), var.arg("std")
-        return mean + std * _truncated_std_normal(u, (lo - mean) / std, (hi - mean) / std)
+        return mean + std * _truncated_std_normal(u, *_standard_bounds(var))
     if var.distribution == "log-normal":
         med, sig = var.arg("median"), var.arg("sigma")
-        a = math.log(lo / med) / sig if lo > 0.0 else -math.inf
-        b = math.log(hi / med) / sig if math.isfinite(hi) else math.inf
-        return med * _exp(sig * _truncated_std_normal(u, a, b))
+        return med * _exp(sig * _truncated_std_normal(u, *_standard_bounds(var)))
     raise AssertionError(var.distribution)
 
 

@@ -44,13 +44,13 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import tomllib
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .._io import read_text, sha256_file
+from .._io import parse_toml, read_text, sha256_file
 from ..errors import InputError, ParameterError
 from ..paper.published import SET_NAMES, named_set
 from ..plant import ServoParams, allowed_names, with_overrides
@@ -61,6 +61,7 @@ from ..sim.references import Step, parse_reference
 
 __all__ = [
     "DISTRIBUTIONS",
+    "LOG_TAIL_SCHEME",
     "MAX_POINTS",
     "SAMPLING_SCHEME",
     "SPECIAL_NAMES",
@@ -101,6 +102,11 @@ DEFAULT_CHUNK = 1000
 #: stream numbers, the inverse CDFs). It is part of the canonical spec, so its digest, so a
 #: sweep drawn by another scheme is never resumed into (its rows would mix two draws).
 SAMPLING_SCHEME = 1
+#: The scheme of a spec with a bounded normal or log-normal so far in a tail (beyond about
+#: 37 standard deviations) that scheme 1 put every draw on a bound: its draws are now exact
+#: (in logarithms, ``sampling._tail_in_logs``), and a folder scheme 1 drew for such a spec
+#: is never resumed into. Every other spec draws the same bits as in scheme 1, and keeps it.
+LOG_TAIL_SCHEME = 2
 #: The scheme of a manifest that names none: written before the scheme was recorded, whose
 #: draws are scheme 1's.
 UNRECORDED_SCHEME = 1
@@ -313,8 +319,17 @@ class SweepSpec:
             "seed": self.seed, "chunk": self.chunk,
             "controllers": [c.record() for c in self.controllers],
             "vary": [v.record() for v in self.vary],
-            "sampling": SAMPLING_SCHEME,
+            "sampling": self.sampling_scheme,
         }
+
+    @property
+    def sampling_scheme(self) -> int:
+        """The scheme its points are drawn by: :data:`LOG_TAIL_SCHEME` when a variation is
+        drawn in logarithms, else :data:`SAMPLING_SCHEME`."""
+        from .sampling import in_log_tail
+
+        return LOG_TAIL_SCHEME if any(in_log_tail(v) for v in self.random) \
+            else SAMPLING_SCHEME
 
     @classmethod
     def from_canonical(cls, doc: Mapping[str, Any]) -> SweepSpec:
@@ -371,11 +386,7 @@ def load_spec(path: str | Path) -> SweepSpec:
     if path.is_dir():
         raise InputError(f"sweep spec {str(path)!r} is a directory; give a .toml file")
     text = read_text(path, "sweep spec")
-    try:
-        doc = tomllib.loads(text)
-    except ValueError as exc:
-        why = " ".join(str(exc).split())[:200]
-        raise InputError(f"sweep spec {str(path)!r} is not valid TOML: {why}") from None
+    doc = parse_toml(text, f"sweep spec {str(path)!r}")  # nesting bounded, one-line errors
     try:
         return parse_spec(doc, base_dir=path.parent)
     except ParameterError as exc:
@@ -491,6 +502,29 @@ def _controller(i: int, table: Any, base_dir: Path, ts: float) -> ControllerEntr
     return entry
 
 
+#: A parameter's own range check (plant/params.py: sign and finiteness, which depend on
+#: its value alone). Checks relating it to another parameter (rod < bore) are not: another
+#: varied parameter may satisfy them, so they are left to each point.
+_OWN_RANGE = "{name} must be (?:> 0|>= 0|a finite number), got "
+#: Varied parameters that move the stroke or the transducer's resolution, against which the
+#: reference is checked (with one of them varied, each point is checked alone).
+_STROKE_NAMES = ("cylinder.stroke", "transducer.resolution")
+
+
+def _out_of_range(spec: SweepSpec, name: str, relative: bool, value: float) -> str | None:
+    """Why ``value`` (a factor when ``relative``) is outside the range of the parameter
+    ``name`` on its own, or None (also for the special names, checked elsewhere)."""
+    if "." not in name:
+        return None
+    si = spec.nominal_value(name) * value if relative else value
+    try:
+        with_overrides(spec.nominal, {name: si})
+    except ParameterError as exc:
+        if re.match(_OWN_RANGE.format(name=re.escape(name)), str(exc)):
+            return str(exc)
+    return None
+
+
 def _variation(i: int, table: Any, spec: SweepSpec) -> Variation:
     where = f"vary[{i}]"
     if not isinstance(table, dict):
@@ -532,6 +566,10 @@ def _variation(i: int, table: Any, spec: SweepSpec) -> Variation:
             raise _bad(f"{where}.grid", f"{name} must be >= 0, got {min(values)!r}")
         if len(set(values)) != len(values):
             raise _bad(f"{where}.grid", "has a value twice")
+        for v in values:
+            why = _out_of_range(spec, name, relative, v)
+            if why is not None:
+                raise _bad(f"{where}.grid", f"{v!r} is not a value {name} may take ({why})")
         return Variation(name=name, relative=relative, values=values)
     dist = table.get("distribution")
     if dist not in DISTRIBUTIONS:
@@ -565,6 +603,13 @@ def _variation(i: int, table: Any, spec: SweepSpec) -> Variation:
             raise _bad(f"{where}.median", f"must be > 0, got {args['median']!r}")
         if not args["sigma"] > 0.0:
             raise _bad(f"{where}.sigma", f"must be > 0, got {args['sigma']!r}")
+    for key, bound, other in (("low", lo, hi), ("high", hi, lo)):
+        if math.isfinite(bound):  # draws come as close to a bound as the doubles allow
+            why = _out_of_range(spec, name, relative, math.nextafter(bound, other))
+            if why is not None:
+                raise _bad(f"{where}.{key}", f"{bound!r} lets draws take values {name} may "
+                                             f"not take ({why}); give bounds inside its "
+                                             f"range")
     return Variation(name=name, relative=relative, distribution=str(dist),
                      args=tuple(args.items()))
 
@@ -686,19 +731,40 @@ def _check_nominal(spec: SweepSpec, varied: list[str]) -> None:
             check_delay(spec.delay, duration=spec.duration)
         except ParameterError as exc:
             raise _bad("sweep.delay", str(exc)) from None
-    if "amplitude" in varied:
-        return
     ref = parse_reference(spec.reference)
+    amp = next((v for v in spec.vary if v.name == "amplitude"), None)
+    where = f"vary[{spec.vary.index(amp)}]" if amp is not None else "reference.spec"
     try:
-        check_reference(ref, ts=spec.ts, duration=spec.duration)
-        if any("." in n for n in varied):
-            return  # the stroke or the start may vary: checked per point
+        if amp is None:
+            check_reference(ref, ts=spec.ts, duration=spec.duration)
+        if any(n in _STROKE_NAMES for n in varied):
+            return  # the stroke or the resolution varies: each point is checked alone
         params = spec.nominal
         plant = build_plant(spec.plant, params, spec.start * params.cylinder.stroke,
                             substep=spec.substep)
         t = time_grid(spec.duration, spec.ts)
         stroke, resolution = plant_limits(plant)
-        check_reference_samples(plant.y0 + sample_reference(ref, t), t, start=plant.y0,
-                                stroke=stroke, resolution=resolution)
     except (InputError, ParameterError) as exc:
         raise _bad("reference.spec", str(exc)) from None
+    refs: list[tuple[str, str, Any]]  # (key, what is shown, reference)
+    if amp is None:
+        refs = [("reference.spec", "", ref)]
+    else:  # the grid's values, or the draws nearest each finite bound
+        assert isinstance(ref, Step)
+        scale = spec.nominal_value("amplitude") if amp.relative else 1.0
+        lo, hi = amp.arg("low", -math.inf), amp.arg("high", math.inf)
+        if amp.is_grid:
+            refs = [(f"{where}.grid", f"amplitude {a!r}: ", Step(scale * a, ref.time))
+                    for a in amp.values]
+        else:
+            refs = [(f"{where}.{k}", f"draws near {k} = {b!r}: ",
+                     Step(scale * math.nextafter(b, o), ref.time))
+                    for k, b, o in (("low", lo, hi), ("high", hi, lo)) if math.isfinite(b)]
+    for key, shown, r in refs:
+        try:
+            if amp is not None:
+                check_reference(r, ts=spec.ts, duration=spec.duration)
+            check_reference_samples(plant.y0 + sample_reference(r, t), t, start=plant.y0,
+                                    stroke=stroke, resolution=resolution)
+        except (InputError, ParameterError) as exc:
+            raise _bad(key, shown + str(exc)) from None
