@@ -28,6 +28,7 @@ import importlib
 import io
 import os
 import signal
+import stat
 import sys
 import threading
 import warnings
@@ -95,6 +96,41 @@ def _resend(signum: int) -> None:
 def _ours(exc: BaseException) -> FuzzyServoError | None:
     """The first error of ours in ``exc``'s chain (scipy wraps errors raised in callbacks)."""
     return next((e for e in error_chain(exc) if isinstance(e, FuzzyServoError)), None)
+
+
+def _stdout_is_full(exc: OSError) -> bool:
+    """Whether ``exc`` (no room, no file name) is standard output's: a character device
+    (``/dev/full``; a terminal never runs out of room), or a file on a full disk or past the
+    file size limit. Else it was a temporary file's."""
+    try:
+        fd = sys.__stdout__.fileno() if sys.__stdout__ is not None else 1
+        st = os.fstat(fd)
+        if stat.S_ISCHR(st.st_mode):
+            return True
+        if not stat.S_ISREG(st.st_mode):
+            return False  # a pipe or a socket: no disk to fill
+        if exc.errno == errno.EFBIG:
+            return True
+        vfs = os.fstatvfs(fd)
+        return vfs.f_bavail == 0 or vfs.f_bfree == 0
+    except (OSError, ValueError):
+        return False
+
+
+def _foreign(exc: BaseException) -> int:
+    """An exception not ours: an interruption in its chain is re-raised; one of our errors
+    wrapped by a library is its one line; anything else propagates (a defect: traceback).
+
+    Ctrl-C inside a class body being created (a module imported lazily, e.g. matplotlib's)
+    reaches us as a RuntimeError from __set_name__ with the KeyboardInterrupt as its cause:
+    it is still an interruption."""
+    stop = next((e for e in error_chain(exc) if isinstance(e, KeyboardInterrupt)), None)
+    if stop is not None:
+        raise stop from None
+    ours = _ours(exc)
+    if ours is None:
+        raise exc
+    return _error(str(ours))
 
 
 def _error(message: str) -> int:
@@ -231,23 +267,17 @@ def _run(argv: Sequence[str] | None) -> int:
         return _error("out of memory; ask for less: a shorter or coarser run, a smaller "
                       "grid or population")
     except OSError as exc:
-        # a write to a stream, not to a named file (those are OutputErrors, handled above):
-        # standard output on a full disk; what is left in its buffer goes nowhere, so the
-        # exit stays quiet
+        # no room for a write to a stream, not to a named file (those are OutputErrors,
+        # handled above): standard output's (what is left in its buffer goes nowhere, so
+        # the exit stays quiet), else a temporary file's disk
         if exc.errno not in _NO_ROOM or exc.filename is not None:
-            raise
-        _stdout_to_devnull()
-        return _error(f"cannot write standard output: {exc.strerror or 'no room'}")
+            return _foreign(exc)
+        if _stdout_is_full(exc):
+            _stdout_to_devnull()
+            return _error(f"cannot write standard output: {exc.strerror or 'no room'}")
+        return _error(f"cannot write a temporary file: {exc.strerror or 'no room'} (free some "
+                      f"space, or point TMPDIR at a disk that has it)")
     except Exception as exc:  # a library wrapped one of our errors, or an interruption
-        # Ctrl-C inside a class body being created (a module imported lazily, e.g.
-        # matplotlib's) reaches us as a RuntimeError from __set_name__ with the
-        # KeyboardInterrupt as its cause: it is still an interruption
-        stop = next((e for e in error_chain(exc) if isinstance(e, KeyboardInterrupt)), None)
-        if stop is not None:
-            raise stop from None
-        ours = _ours(exc)
-        if ours is None:
-            raise
-        return _error(str(ours))
+        return _foreign(exc)
     return status
 

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import tomllib
 from pathlib import Path
 
@@ -174,3 +175,36 @@ def test_max_evaluations_takes_1e6(tmp_path: Path) -> None:
     assert main(["simulate", "--open-loop", "--command", "0.1", "--plant", "nonlinear",
                  "--method", "solve_ivp", "--duration", "0.01", "--max-evaluations", "1e6",
                  "--out", str(tmp_path / "x.csv")]) == 0
+
+
+def test_an_os_error_wrapping_ours_is_printed_as_itself(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """An OSError from a library, with one of our errors as its cause, is ours: one line
+    (the full-disk clause before the generic one must not take it)."""
+    try:
+        try:
+            raise InputError("--ts must be at least 1e-06 s, got 1e-09")
+        except InputError as inner:
+            raise OSError(errno.EIO, "callback failed") from inner
+    except OSError as wrapped:
+        exc = wrapped
+    monkeypatch.setattr(cli, "build_parser", lambda **_: _handler_raising(exc))
+    assert main([]) == 2
+    _one_line(capsys, "--ts must be at least 1e-06 s")
+
+
+def test_no_room_for_a_temporary_file_does_not_blame_standard_output(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """ENOSPC from a write without a file name while standard output is fine: a temporary
+    file's disk, said so; standard output stays usable."""
+    exc = OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(cli, "build_parser", lambda **_: _handler_raising(exc))
+    assert main([]) == 2
+    _one_line(capsys, "cannot write a temporary file: No space left on device")
+
+
+def test_another_os_error_is_not_hidden(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(cli, "build_parser",
+                        lambda **_: _handler_raising(OSError(errno.EIO, "I/O error")))
+    with pytest.raises(OSError, match="I/O error"):
+        main([])

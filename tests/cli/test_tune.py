@@ -4,6 +4,7 @@ errors with status 2, and an interrupted run that resumes from its checkpoint.""
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +14,7 @@ import pytest
 import fuzzyservo.commands.tune as tune_cmd
 from fuzzyservo.analysis.autotune import TuningProgress
 from fuzzyservo.cli import main
+from fuzzyservo.errors import InputError
 from fuzzyservo.files import checkpoint_path, load_checkpoint, read_gains_toml, save_checkpoint
 from tests.helpers import printed_metrics
 
@@ -214,3 +216,17 @@ def test_a_damaged_checkpoint_is_one_line_not_a_traceback(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and needle in err and "without --resume" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device"])
+def test_a_checkpoint_that_is_not_a_regular_file_is_refused_without_reading_it(
+        tmp_path: Path, kind: str) -> None:
+    """A FIFO would block the read for ever and /dev/zero would fill memory: refused in one
+    line, before any read."""
+    ck = tmp_path / "g.toml.partial.npz"
+    if kind == "fifo":
+        os.mkfifo(ck)
+    else:
+        ck.symlink_to("/dev/zero")
+    with pytest.raises(InputError, match="not a regular file.*run without --resume"):
+        load_checkpoint(ck)

@@ -18,9 +18,10 @@ import numpy as np
 import pytest
 
 from fuzzyservo.cli import main
-from fuzzyservo.errors import OutputError, ParameterError
+from fuzzyservo.errors import InputError, OutputError, ParameterError
 from fuzzyservo.sweep import load_spec, read_manifest, read_table, run_sweep, table_digest
 from fuzzyservo.sweep.dataset import chunk_path, write_chunk
+from fuzzyservo.sweep.report import write_report
 from fuzzyservo.sweep.spec import LOG_TAIL_SCHEME, SAMPLING_SCHEME, Variation
 
 SPEC = """
@@ -197,6 +198,8 @@ def test_a_report_over_the_sweeps_own_files_is_refused(
     for target in ("manifest.json", "spec.toml", "chunks/chunk-000000.parquet"):
         assert main(["sweep-report", str(out), "--out", str(out / target)]) == 2
         assert "would replace its" in _one_line(capsys)
+        with pytest.raises(InputError, match="would replace its"):  # the API as the CLI
+            write_report(out, out / target)
     assert _files(out) == before
     assert main(["reproduce", "--out", str(out), "--plant", "linear", "--quiet"]) == 2
     assert "writing the study there would replace its manifest (the sweep folder" in \

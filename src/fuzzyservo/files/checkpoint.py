@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import struct
 import zipfile
 import zlib
@@ -17,12 +18,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_write, npz_inflation
+from .._io import atomic_write, npz_inflation, read_bytes
 from ..analysis.autotune import Checkpoint, DoneStage
 from ..analysis.tuning import SearchState
 from ..errors import InputError
 
 __all__ = ["checkpoint_path", "load_checkpoint", "save_checkpoint"]
+
+
+#: Largest checkpoint read [bytes]: a tuning's population and history take kilobytes to a
+#: few megabytes.
+_MAX_CHECKPOINT_BYTES = 256 * 1024 * 1024
 
 
 def checkpoint_path(out: Path) -> Path:
@@ -68,12 +74,13 @@ def load_checkpoint(path: str | Path) -> Checkpoint:
         file and says to delete it or to run without ``--resume``.
     """
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        missing = isinstance(exc, FileNotFoundError)
-        raise InputError(f"cannot read checkpoint {str(path)!r}: {exc.strerror or exc}; "
-                         f"{'' if missing else 'delete it or '}run without --resume") from None
+    if not os.path.lexists(path):
+        raise InputError(f"cannot read checkpoint {str(path)!r}: No such file or directory; "
+                         f"run without --resume")
+    try:  # a regular file, one bounded read: never a FIFO's wait or /dev/zero's flood
+        data = read_bytes(path, "checkpoint", limit=_MAX_CHECKPOINT_BYTES)
+    except InputError as exc:
+        raise InputError(f"{exc}; delete it or run without --resume") from None
     inflated = npz_inflation(data)
     if inflated is not None:
         raise InputError(f"checkpoint {str(path)!r} is unreadable, truncated or not a tuning "

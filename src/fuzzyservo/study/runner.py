@@ -41,6 +41,7 @@ from typing import Any
 from .._io import (
     confined,
     parse_json,
+    read_text,
     refuse_links,
     result_data_of,
     sha256_file,
@@ -244,7 +245,7 @@ def _notes(plant: str, tuned: Mapping[str, TunedGains]) -> dict[str, str]:
 
 def _read_manifest(out: Path) -> dict[str, Any] | None:
     try:
-        text = (out / MANIFEST).read_text(encoding="utf-8")
+        text = read_text(out / MANIFEST, "study manifest")  # regular, bounded
         doc = parse_json(text, f"{str(out / MANIFEST)!r}")
     except (OSError, ValueError):  # InputError of the nesting check included: unreadable
         return None

@@ -51,6 +51,7 @@ from typing import Any
 
 import numpy as np
 
+from .._io import result_data_of
 from .._typing import BoolArray, FloatArray, IntArray
 from ..analysis.outcome import (
     LIMIT_CYCLE_MIN_PP,
@@ -994,6 +995,9 @@ def write_report(folder: str | Path, out: str | Path, *, worst: int = 10) -> Pat
     if isinstance(worst, bool) or not isinstance(worst, int) or worst < 1:
         raise InputError(f"worst must be a positive integer, got {worst!r}")
     folder = Path(folder)
+    why = result_data_of(out)
+    if why is not None:  # the API as the CLI: a report never replaces a sweep's own data
+        raise InputError(f"report {str(out)!r} {why}")
     d = load(folder)
     spec = d.spec
     quantities = [_quantity(spec, v) for v in spec.vary]
