@@ -80,8 +80,8 @@ def test_numbers_go_as_flag_value_so_a_negative_one_is_named() -> None:
     assert "--noise-std=-1e-06" in s.argv()
     with pytest.raises(Exception) as info:
         run_page(s)
-    assert error_line(info.value) == "fuzzyservo: error: noise_std must be finite and >= 0 m, " \
-                                     "got -1e-06"
+    assert error_line(info.value) == "fuzzyservo: error: noise_std must be a finite real " \
+                                     "number >= 0 [m], got -1e-06"
 
 
 def test_engineering_units_shift_the_decimal_point() -> None:

@@ -995,8 +995,10 @@ def write_report(folder: str | Path, out: str | Path, *, worst: int = 10) -> Pat
     if isinstance(worst, bool) or not isinstance(worst, int) or worst < 1:
         raise InputError(f"worst must be a positive integer, got {worst!r}")
     folder = Path(folder)
-    why = result_data_of(out)
-    if why is not None:  # the API as the CLI: a report never replaces a sweep's own data
+    # the API as the CLI: a report never replaces a sweep's own data (a study writes its
+    # sweeps' reports among its own listed outputs: those the study's own checks guard)
+    why = result_data_of(out, ("sweep",))
+    if why is not None:
         raise InputError(f"report {str(out)!r} {why}")
     d = load(folder)
     spec = d.spec

@@ -29,7 +29,7 @@ import numpy as np
 from scipy.special import log_ndtr, ndtr, ndtri, ndtri_exp
 
 from .._typing import FloatArray, IntArray
-from .spec import SweepSpec, Variation
+from .spec import _LOG_TAIL, SweepSpec, Variation, _standard_bounds, in_log_tail
 
 __all__ = ["Points", "counter_uniform", "in_log_tail", "points", "transform"]
 
@@ -80,10 +80,6 @@ def _exp(x: FloatArray) -> FloatArray:
                     dtype=np.float64).reshape(np.shape(x))
 
 
-#: Below this tail probability the interval's Φ values are drawn in logarithms: Φ(-37.5)
-#: is already subnormal and Φ(-38.5) is 0, so a bound 40 standard deviations out put
-#: every draw on the far bound.
-_LOG_TAIL = 1e-300
 
 
 def _tail_in_logs(q: FloatArray, a: float, b: float) -> FloatArray:
@@ -117,27 +113,6 @@ def _truncated_std_normal(u: FloatArray, a: float, b: float) -> FloatArray:
         else:
             z = ndtri(lo + u * (hi - lo))
     return np.clip(z, a, b)  # rounding of Φ⁻¹ near the bounds: stay inside them
-
-
-def _standard_bounds(var: Variation) -> tuple[float, float]:
-    """The bounds of a normal or log-normal variation in standard units (a, b)."""
-    lo, hi = var.arg("low", -math.inf), var.arg("high", math.inf)
-    if var.distribution == "normal":
-        mean, std = var.arg("mean"), var.arg("std")
-        return (lo - mean) / std, (hi - mean) / std
-    med, sig = var.arg("median"), var.arg("sigma")
-    a = math.log(lo / med) / sig if lo > 0.0 else -math.inf
-    b = math.log(hi / med) / sig if math.isfinite(hi) else math.inf
-    return a, b
-
-
-def in_log_tail(var: Variation) -> bool:
-    """Whether a variation's draws are made in logarithms (:func:`_tail_in_logs`): a normal
-    or log-normal truncated to an interval so far in a tail that its Φ underflows."""
-    if var.distribution not in ("normal", "log-normal"):
-        return False
-    a, b = _standard_bounds(var)
-    return float(ndtr(-a) if a > 0.0 else ndtr(b)) < _LOG_TAIL
 
 
 def transform(var: Variation, u: FloatArray) -> FloatArray:

@@ -50,6 +50,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from scipy.special import ndtr
+
 from .._io import parse_toml, read_text, sha256_file
 from ..errors import InputError, ParameterError
 from ..paper.published import SET_NAMES, named_set
@@ -326,8 +328,6 @@ class SweepSpec:
     def sampling_scheme(self) -> int:
         """The scheme its points are drawn by: :data:`LOG_TAIL_SCHEME` when a variation is
         drawn in logarithms, else :data:`SAMPLING_SCHEME`."""
-        from .sampling import in_log_tail
-
         return LOG_TAIL_SCHEME if any(in_log_tail(v) for v in self.random) \
             else SAMPLING_SCHEME
 
@@ -768,3 +768,32 @@ def _check_nominal(spec: SweepSpec, varied: list[str]) -> None:
                                     stroke=stroke, resolution=resolution)
         except (InputError, ParameterError) as exc:
             raise _bad(key, shown + str(exc)) from None
+
+
+# ---- the far tails (drawn in logarithms by sampling._tail_in_logs) ----------------------
+
+#: Below this tail probability the interval's Φ values are drawn in logarithms: Φ(-37.5)
+#: is already subnormal and Φ(-38.5) is 0, so a bound 40 standard deviations out put
+#: every draw on the far bound.
+_LOG_TAIL = 1e-300
+
+
+def _standard_bounds(var: Variation) -> tuple[float, float]:
+    """The bounds of a normal or log-normal variation in standard units (a, b)."""
+    lo, hi = var.arg("low", -math.inf), var.arg("high", math.inf)
+    if var.distribution == "normal":
+        mean, std = var.arg("mean"), var.arg("std")
+        return (lo - mean) / std, (hi - mean) / std
+    med, sig = var.arg("median"), var.arg("sigma")
+    a = math.log(lo / med) / sig if lo > 0.0 else -math.inf
+    b = math.log(hi / med) / sig if math.isfinite(hi) else math.inf
+    return a, b
+
+
+def in_log_tail(var: Variation) -> bool:
+    """Whether a variation's draws are made in logarithms (``sampling._tail_in_logs``): a normal
+    or log-normal truncated to an interval so far in a tail that its Φ underflows."""
+    if var.distribution not in ("normal", "log-normal"):
+        return False
+    a, b = _standard_bounds(var)
+    return float(ndtr(-a) if a > 0.0 else ndtr(b)) < _LOG_TAIL
