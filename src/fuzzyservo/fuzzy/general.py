@@ -961,10 +961,47 @@ def _pl_segments(n_items: int, lab: IntArray, h: FloatArray, f: FloatArray, bp_o
 
 
 @kernel(inline=True)
+def _point_x(code: int, f: FloatArray, off: int) -> float:
+    """Where a zero-width term sits (triangle a = c, trapezoid a = d, rectangle start = end;
+    shapes.point_of), NaN for any other term."""
+    if code == _TRI and f[off] == f[off + 2]:
+        return f[off]
+    if code == _TRAP and f[off] == f[off + 3]:
+        return f[off]
+    if code == _RECT and f[off] == f[off + 1]:
+        return f[off]
+    return np.nan
+
+
+@kernel(inline=True)
+def _pl_points(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray,
+               h: FloatArray, px: FloatArray, pv: FloatArray) -> int:
+    """The zero-width items of output o inside its range: their places (px) and the
+    aggregate there (pv: every item's exact membership at that point, aggregated). The linear
+    pieces cannot hold them (they have no width); the maxima methods read them."""
+    n_in = ints[H_NIN]
+    fv = ints[H_FVARS] + 4 * (n_in + o)
+    tt = ints[H_TERMS]
+    first = ints[ints[H_VARS] + 2 * (n_in + o)]
+    n = 0
+    for i in range(n_items):
+        t = first + lab[i]
+        x0 = _point_x(ints[tt + 3 * t], f, ints[tt + 3 * t + 1])
+        if x0 == x0 and f[fv] <= x0 <= f[fv + 1]:
+            px[n] = x0
+            pv[n] = _g(x0, ints, f, first, n_items, lab, h)
+            n += 1
+    return n
+
+
+@kernel(inline=True)
 def _defuzz_segments(n_seg: int, su: FloatArray, sv: FloatArray, gu: FloatArray,
-                     gv: FloatArray, mode: int) -> float:
+                     gv: FloatArray, mode: int, px: FloatArray, pv: FloatArray,
+                     n_pt: int) -> float:
     """Centroid (0), bisector (1), mean (2), smallest (3) or largest (4) of maximum of a
-    piecewise-linear function given by its pieces; NaN for zero area."""
+    piecewise-linear function given by its pieces and by n_pt isolated points (px, pv: the
+    zero-width terms, no area, read by the maxima only); NaN for zero area (centroid,
+    bisector) or a zero maximum."""
     area = 0.0
     moment = 0.0
     gmax = 0.0
@@ -979,7 +1016,10 @@ def _defuzz_segments(n_seg: int, su: FloatArray, sv: FloatArray, gu: FloatArray,
         moment += (v - u) * (u * (2.0 * gu[s] + gv[s]) + v * (gu[s] + 2.0 * gv[s])) / 6.0
         area += 0.5 * (sv[s] - su[s]) * (gu[s] + gv[s])
         gmax = max(gmax, gu[s], gv[s])
-    if not area > 0.0:
+    gpt = 0.0
+    for i in range(n_pt):
+        gpt = max(gpt, pv[i])
+    if not area > 0.0 and (mode <= 1 or not gpt > 0.0):
         return np.nan
     if mode == 0:
         return ref + span * (moment * span) / area
@@ -1005,13 +1045,15 @@ def _defuzz_segments(n_seg: int, su: FloatArray, sv: FloatArray, gu: FloatArray,
                 return u + min(max(t_root, 0.0), length)
             acc += seg
         return sv[n_seg - 1]
+    # the maximum over the pieces and the points (gmax itself without zero-width terms)
+    gmax = max(gmax, gpt)
     tol = 1e-12 * gmax
     if mode == 2:
         plen = 0.0
         pmom = 0.0
         # a plateau shorter than 1e-12 of the support is a peak's rounding (the clip point of
         # a line through the peak lands 1e-16 beside it), not a set of positive length
-        minlen = 1e-12 * (sv[n_seg - 1] - su[0])
+        minlen = 1e-12 * (sv[n_seg - 1] - su[0]) if n_seg > 0 else 0.0
         for s in range(n_seg):
             if gu[s] >= gmax - tol and gv[s] >= gmax - tol and sv[s] - su[s] > minlen:
                 plen += sv[s] - su[s]
@@ -1030,19 +1072,46 @@ def _defuzz_segments(n_seg: int, su: FloatArray, sv: FloatArray, gu: FloatArray,
                 cnt += 1
                 tot += sv[s]
                 last = sv[s]
+        # the maximising points of zero width, each place once (a piece's end there is one)
+        for i in range(n_pt):
+            if pv[i] < gmax - tol:
+                continue
+            seen = False
+            for j in range(i):
+                if pv[j] >= gmax - tol and px[j] == px[i]:
+                    seen = True
+            for s in range(n_seg):
+                if (gu[s] >= gmax - tol and abs(su[s] - px[i]) <= minlen) or \
+                        (gv[s] >= gmax - tol and abs(sv[s] - px[i]) <= minlen):
+                    seen = True
+            if not seen:
+                cnt += 1
+                tot += px[i]
         return tot / cnt
+    best = np.nan
     if mode == 3:
         for s in range(n_seg):
             if gu[s] >= gmax - tol:
-                return su[s]
+                best = su[s]
+                break
             if gv[s] >= gmax - tol:
-                return sv[s]
+                best = sv[s]
+                break
+        for i in range(n_pt):
+            if pv[i] >= gmax - tol and not px[i] >= best:
+                best = px[i]
+        return best
     for s in range(n_seg - 1, -1, -1):
         if gv[s] >= gmax - tol:
-            return sv[s]
+            best = sv[s]
+            break
         if gu[s] >= gmax - tol:
-            return su[s]
-    return np.nan
+            best = su[s]
+            break
+    for i in range(n_pt):
+        if pv[i] >= gmax - tol and not px[i] <= best:
+            best = px[i]
+    return best
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1407,9 +1476,12 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
             ka, _, _, _ = _gk(cuts[k], cuts[k + 1], c0, ints, f, first, n_items, lab, h, xgk,
                               wgk, wg)
             a0 += abs(ka)
-    if not a0 > 0.0:
-        return np.nan
     span = hi - lo
+    if not a0 > 0.0:
+        # no area (only zero-width terms fired): no centroid or bisector, the maxima remain
+        if mode <= 1:
+            return np.nan
+        return _smooth_maxima(ints, f, first, n_items, lab, h, cuts, nc, span, mode)
     cap = QUAD_MAX_SUB * (nc + 1)
     acc_a = np.empty(cap)
     acc_b = np.empty(cap)
@@ -1488,6 +1560,15 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
                 return 0.5 * (ta + tb)
             cum += acc_area[i]
         return hi
+    return _smooth_maxima(ints, f, first, n_items, lab, h, cuts, nc, span, mode)
+
+
+@kernel(error_model="numpy")
+def _smooth_maxima(ints: IntArray, f: FloatArray, first: int, n_items: int, lab: IntArray,
+                   h: FloatArray, cuts: FloatArray, nc: int, span: float, mode: int) -> float:
+    """Mean (2), smallest (3) or largest (4) of maximum of a smooth aggregate cut into
+    pieces at ``cuts[:nc]``; a zero-width term at a cut counts as a point (NaN: zero
+    maximum)."""
     # maxima: the cut points, and in every piece each local maximum of a scan of SCAN_CELLS
     # cells (a sum of terms may have several between two knots), located by golden section
     # and refined to the zero of the derivative (values alone place it to ~1e-8 only)
@@ -1533,6 +1614,8 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
             ncand += 1
     for i in range(ncand):
         gmax = max(gmax, cv[i])
+    if not gmax > 0.0:
+        return np.nan
     tolm = 1e-12 * gmax
     # plateaus: pieces where g stays at gmax (both ends and the middle)
     plen = 0.0
@@ -1685,7 +1768,14 @@ def eval_point(ints: IntArray, f: FloatArray, x: FloatArray, out: FloatArray,
                     ns = _pl_segments(n_items, lab, h, f, ints[base + 1], k0, k1,
                                       ints[base + 3], ints[base + 4], ints[base + 5], impl,
                                       agg, lc, m, hh, cand, su, sv, gu, gv)
-                    val = _defuzz_segments(ns, su, sv, gu, gv, dmode)
+                    # the zero-width items (maxima only) in the candidates' scratch, which
+                    # _pl_segments is done with (2 + 2 mi + 3 mi^2 >= 2 mi places)
+                    px = cand[:mi]
+                    pv = cand[mi:2 * mi]
+                    n_pt = 0
+                    if dmode >= 2:
+                        n_pt = _pl_points(ints, f, o, n_items, lab, h, px, pv)
+                    val = _defuzz_segments(ns, su, sv, gu, gv, dmode, px, pv, n_pt)
                 elif mode == _M_SING:
                     val = _singletons(ints, f, o, n_items, lab, h, hts, dmode)
                 else:

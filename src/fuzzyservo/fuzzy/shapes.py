@@ -29,6 +29,7 @@ __all__ = [
     "Family",
     "Shape",
     "knots",
+    "point_of",
     "shape",
     "support",
     "vertices",
@@ -72,14 +73,17 @@ def _discrete_vertices(p: tuple[float, ...], h: float) -> list[tuple[float, floa
 # what a shape's parameters must satisfy: the first requirement they fail, or None
 
 
+# a = b = c (a triangle) and a = b = c = d (a trapezoid) are zero-width terms: a point, as
+# fuzzylite and jFuzzyLogic read them (`TRIAN 0 0 0`); see point_of and docs/fuzzy-files.md
+
+
 def _tri_needs(p: tuple[float, ...]) -> str | None:
-    return None if p[0] <= p[1] <= p[2] and p[0] < p[2] else "a <= b <= c with a < c"
+    return None if p[0] <= p[1] <= p[2] else "a <= b <= c"
 
 
 def _trap_needs(p: tuple[float, ...]) -> str | None:
-    if not (p[0] <= p[1] <= p[2] <= p[3] and p[0] < p[3]
-            and math.isfinite(p[1]) and math.isfinite(p[2])):
-        return "a <= b <= c <= d with a < d and b, c finite"
+    if not (p[0] <= p[1] <= p[2] <= p[3] and math.isfinite(p[1]) and math.isfinite(p[2])):
+        return "a <= b <= c <= d with b, c finite"
     return "a finite or d finite" if p[0] == -math.inf and p[3] == math.inf else None
 
 
@@ -122,6 +126,10 @@ def _ramp_support(p: tuple[float, ...]) -> tuple[float, float] | None:
     if a == b:
         return None
     return (a, math.inf) if a < b else (-math.inf, a)
+
+
+def _open(lo: float, hi: float) -> tuple[float, float] | None:
+    return (lo, hi) if lo < hi else None
 
 
 def _discrete_support(p: tuple[float, ...]) -> tuple[float, float] | None:
@@ -190,11 +198,11 @@ class Shape:
 #: Every shape, in the order of their codes (the compiled evaluator's switch).
 SHAPE_TABLE: tuple[Shape, ...] = (
     Shape("triangle", ("a", "b", "c"), "piecewise linear", 0, "trimf", None, True,
-          "Triangle", "trian", vertices=_tri_vertices, support=lambda p: (p[0], p[2]),
+          "Triangle", "trian", vertices=_tri_vertices, support=lambda p: _open(p[0], p[2]),
           needs=_tri_needs),
     Shape("trapezoid", ("a", "b", "c", "d"), "piecewise linear", 1, "trapmf", None, True,
           "Trapezoid", "trape", infinite=(0, 3), vertices=_trap_vertices,
-          support=lambda p: (p[0], p[3]), needs=_trap_needs),
+          support=lambda p: _open(p[0], p[3]), needs=_trap_needs),
     Shape("rectangle", ("start", "end"), "piecewise linear", 2, "rectmf", None, False,
           "Rectangle", vertices=_rect_vertices,
           needs=lambda p: None if p[0] <= p[1] else "start <= end"),
@@ -265,3 +273,20 @@ def support(name: str, params: tuple[float, ...]) -> tuple[float, float] | None:
     """An open interval (lo, hi) on which the shape is > 0, or None if not known to be one."""
     f = _BY_NAME[name].support
     return None if f is None else f(params)
+
+
+def point_of(name: str, params: tuple[float, ...]) -> float | None:
+    """Where a zero-width term sits (a triangle a = b = c, a trapezoid a = b = c = d, a
+    rectangle start = end), None for any other term.
+
+    Such a term is 1 (its height) at that point and 0 elsewhere, as fuzzylite, jFuzzyLogic and
+    MATLAB's trimf compute it exactly there: in an input a crisp point; in an output it has no
+    area (it adds nothing to a centroid or bisector) and is a point for the maxima methods.
+    """
+    if name == "triangle" and params[0] == params[2]:
+        return params[0]
+    if name == "trapezoid" and params[0] == params[3]:
+        return params[0]
+    if name == "rectangle" and params[0] == params[1]:
+        return params[0]
+    return None
