@@ -217,15 +217,15 @@ def _packed(rules: IntArray, lims: FloatArray, real: Real, what: str
 
 
 def _no_point_maxima(ints: IntArray, floats: FloatArray, what: str) -> None:
-    """Refuse a zero-width output term (triangle a = c, trapezoid a = d, rectangle start =
-    end) under a maxima defuzzifier: the Python reads it as a point of the maximum
+    """Refuse a zero-width output term (triangle a = c, trapezoid a = d) under a maxima
+    defuzzifier: the Python reads it as a point of the maximum
     (general._pl_points), the C port has no such point yet. Under centroid and bisector it
     adds no area in both, so those are exported."""
     if int(ints[_g.H_DEFUZZ]) not in (2, 3, 4):
         return
     n_in, n_out = int(ints[_g.H_NIN]), int(ints[_g.H_NOUT])
     vt, tt = int(ints[_g.H_VARS]), int(ints[_g.H_TERMS])
-    last = {_g._TRI: 2, _g._TRAP: 3, _g._RECT: 1}
+    last = {_g._TRI: 2, _g._TRAP: 3}
     for o in range(n_out):
         first, n_t = int(ints[vt + 2 * (n_in + o)]), int(ints[vt + 2 * (n_in + o) + 1])
         for j in range(n_t):

@@ -962,13 +962,11 @@ def _pl_segments(n_items: int, lab: IntArray, h: FloatArray, f: FloatArray, bp_o
 
 @kernel(inline=True)
 def _point_x(code: int, f: FloatArray, off: int) -> float:
-    """Where a zero-width term sits (triangle a = c, trapezoid a = d, rectangle start = end;
-    shapes.point_of), NaN for any other term."""
+    """Where a zero-width term sits (triangle a = c, trapezoid a = d; shapes.point_of), NaN
+    for any other term."""
     if code == _TRI and f[off] == f[off + 2]:
         return f[off]
     if code == _TRAP and f[off] == f[off + 3]:
-        return f[off]
-    if code == _RECT and f[off] == f[off + 1]:
         return f[off]
     return np.nan
 

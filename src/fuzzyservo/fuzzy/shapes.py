@@ -276,8 +276,9 @@ def support(name: str, params: tuple[float, ...]) -> tuple[float, float] | None:
 
 
 def point_of(name: str, params: tuple[float, ...]) -> float | None:
-    """Where a zero-width term sits (a triangle a = b = c, a trapezoid a = b = c = d, a
-    rectangle start = end), None for any other term.
+    """Where a zero-width term sits (a triangle a = b = c, a trapezoid a = b = c = d), None
+    for any other term. (A rectangle with start = end keeps its earlier reading: zero area,
+    no point for any method; tests/fuzzy/test_general.py::test_zero_width_pieces.)
 
     Such a term is 1 (its height) at that point and 0 elsewhere, as fuzzylite, jFuzzyLogic and
     MATLAB's trimf compute it exactly there: in an input a crisp point; in an output it has no
@@ -286,7 +287,5 @@ def point_of(name: str, params: tuple[float, ...]) -> float | None:
     if name == "triangle" and params[0] == params[2]:
         return params[0]
     if name == "trapezoid" and params[0] == params[3]:
-        return params[0]
-    if name == "rectangle" and params[0] == params[1]:
         return params[0]
     return None
