@@ -340,7 +340,7 @@ MALFORMED = [
     ("too few params", BASE.replace("Ramp 4 10", "Ramp 4"), (7, "Ramp"),
      "Ramp takes 2 parameters and an optional height, got 1"),
     ("model refuses the term", BASE.replace("Triangle 0 2 5", "Triangle 5 2 0"), (6, "lo"),
-     "triangle needs a <= b <= c with a < c"),
+     "triangle needs a <= b <= c"),
     ("height 0", BASE.replace("Triangle 0 2 5", "Triangle 0 2 5 0"), (6, "lo"),
      "height must be in (0, 1]"),
     ("range", BASE.replace("range: 0 10", "range: 10 0"), (4, "10 0"),
@@ -862,8 +862,14 @@ def test_fuzzylite_agrees(variant: tuple[str, dict[str, str], bool]) -> None:
     check_against_fuzzylite(text, system, n=50, seed=11, maxima=maxima)
 
 
+#: zero_width.fll is compared with fuzzylite in tests/formats/test_zero_width.py, on points
+#: that keep clear of the documented differences (an input clipped onto a point's range end
+#: fires the output point alone: no area for us, a sampled spike for fuzzylite).
+WRITTEN = [name for name in FILES if name != "zero_width.fll"]
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("name", FILES)
+@pytest.mark.parametrize("name", WRITTEN)
 def test_fuzzylite_agrees_on_written_text(name: str) -> None:
     # The writer's text, evaluated by fuzzylite, is the system parse() read.
     system = parse((DATA / name).read_text(encoding="utf-8"), name)

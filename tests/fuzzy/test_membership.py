@@ -100,7 +100,7 @@ def test_non_finite_inputs(shape: str, params: tuple[float, ...], at_minus_inf: 
     ("shape", "params", "match"),
     [
         ("triangle", (1, 0, 2), "triangle needs"),
-        ("triangle", (0, 0, 0), "triangle needs"),
+        ("triangle", (0, 0, -1), "triangle needs"),  # a = b > c ((0, 0, 0) is a point)
         ("triangle", (0, 2, 1), "triangle needs"),
         ("triangle", (0, math.nan, 1), "must be finite"),
         ("triangle", (0, 0.5, INF), "must be finite"),
