@@ -67,6 +67,7 @@ from fuzzyservo.paper import alpha_system, du_system
 from tests.formats.fuzzylite_oracle import EXAMPLES
 from tests.formats.strategies import systems as random_systems
 from tests.fuzzy.test_general import FIXED, FULL, SMOOTH, TWO_GAUSS, pl_system, table_system
+from tests.fuzzy.test_zero_width import zero_width_systems
 
 from .cbuild import compile_objects, compile_shared
 from .fuzzy_harness import (
@@ -512,7 +513,7 @@ def regression_systems() -> list[tuple[str, FuzzySystem, list[list[float]]]]:
     out.append(("probor of one", FuzzySystem(
         inputs=(x0,), outputs=(y0,), or_op="probor", defuzzifier="bisector",
         rules=(Rule(Not(Or((Is(0, 0, True), Is(0, 1)))), (Consequent(0, 0),)),)), [[2.25]]))
-    return out
+    return out + zero_width_systems()
 
 
 @pytest.mark.parametrize(("name", "system", "points"), regression_systems(),

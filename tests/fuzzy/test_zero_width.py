@@ -1,7 +1,8 @@
 """Zero-width terms in the exact evaluator (issue 29; docs/fuzzy-files.md, "Zero-width terms"):
 analytic values on small systems, both output paths (piecewise linear and smooth), every
-aggregation's value at the point, and the C exporter's refusal under the maxima methods.
-The comparison with fuzzylite is tests/formats/test_zero_width.py."""
+aggregation's value at the point. The exported C evaluator's agreement on these systems is
+tests/export/test_fuzzy_c.py (``zero_width_systems`` among its regression cases); the
+comparison with fuzzylite is tests/formats/test_zero_width.py."""
 
 from __future__ import annotations
 
@@ -11,9 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from fuzzyservo.errors import ParameterError
-from fuzzyservo.export.fuzzy_c import emit_system
-from fuzzyservo.fuzzy import evaluate, membership, pack
+from fuzzyservo.fuzzy import evaluate, membership
 from fuzzyservo.fuzzy.system import Consequent, FuzzySystem, Is, Rule, Term, Variable
 
 #: A maximum that is a vertex or a point: rounding only.
@@ -121,10 +120,34 @@ def test_the_aggregate_at_a_point_is_every_fired_term_there(aggregation: str, so
         pytest.approx(lom, abs=EXACT)
 
 
-def test_the_c_export_refuses_a_point_under_the_maxima_only() -> None:
-    s = _system(POINT, OTHERS["piecewise linear"], defuzzifier="mom")
-    rules, lims = pack(s, grid=False).kernel_args()
-    with pytest.raises(ParameterError, match="zero width"):
-        emit_system("fs_sys_du", rules, lims, real="double")
-    rules, lims = pack(dataclasses.replace(s, defuzzifier="centroid"), grid=False).kernel_args()
-    assert "fs_sys_du" in emit_system("fs_sys_du", rules, lims, real="double")
+def zero_width_systems() -> list[tuple[str, FuzzySystem, list[list[float]]]]:
+    """The systems above under every defuzzifier and aggregation, with the inputs that fire
+    the point alone, above, level with and below the other term (for the C evaluator's
+    comparison in tests/export/test_fuzzy_c.py)."""
+    points = [[0.0, 0.0], [0.2, 0.0], [0.5, 0.0], [0.7, 0.0], [1.0, 0.5], [0.3, 0.5]]
+    # the smooth term narrower than OTHERS': the C comparison in float (bound 1e-5 of the
+    # range) meets two limits of the float smooth path that hold with or without a point:
+    # a Gaussian's top is located to about sigma sqrt(2 eps) (1.2e-5 of the range measured at
+    # sigma = 0.1), and a clipped plateau's ends are missed when the flank there is steep
+    # (a plateau end 0.012 off at sigma = 0.02). sigma = 0.05 sits between them.
+    others = dict(OTHERS, smooth=Term("p", "gaussian", (-0.5, 0.05)),
+                  plateau=Term("p", "trapezoid", (0.0, 0.2, 0.8, 1.0)),
+                  point=Term("q", "trapezoid", (-0.25,) * 4))
+    out = []
+    for name, other in sorted(others.items()):
+        for agg in ("max", "sum", "bounded_sum", "probor"):
+            for d in ("centroid", "bisector", "mom", "som", "lom"):
+                out.append((f"zero width {name} {agg} {d}",
+                            _system(POINT, other, aggregation=agg, defuzzifier=d), points))
+    return out
+
+
+def test_every_case_of_the_c_comparison_fires_a_point() -> None:
+    """The comparison's systems really hold a point that fires: at a = 0 only the point
+    has strength (so a maxima method gives 0.5, a centroid the default)."""
+    for name, s, _ in zero_width_systems():
+        got = evaluate(s, [[0.0, 0.0]])[0, 0]
+        if s.defuzzifier in ("mom", "som", "lom"):
+            assert got == 0.5, name
+        else:
+            assert math.isnan(got) and math.isnan(s.outputs[0].default), name

@@ -212,29 +212,7 @@ def _packed(rules: IntArray, lims: FloatArray, real: Real, what: str
                              f"this one has {int(ints[_g.H_NIN])}")
     for i, v in enumerate(floats):  # a float that C cannot hold in `real`
         _real_literal(float(v), real, f"{what}: floats[{i}]")
-    _no_point_maxima(ints, floats, what)
     return ints, floats
-
-
-def _no_point_maxima(ints: IntArray, floats: FloatArray, what: str) -> None:
-    """Refuse a zero-width output term (triangle a = c, trapezoid a = d) under a maxima
-    defuzzifier: the Python reads it as a point of the maximum
-    (general._pl_points), the C port has no such point yet. Under centroid and bisector it
-    adds no area in both, so those are exported."""
-    if int(ints[_g.H_DEFUZZ]) not in (2, 3, 4):
-        return
-    n_in, n_out = int(ints[_g.H_NIN]), int(ints[_g.H_NOUT])
-    vt, tt = int(ints[_g.H_VARS]), int(ints[_g.H_TERMS])
-    last = {_g._TRI: 2, _g._TRAP: 3}
-    for o in range(n_out):
-        first, n_t = int(ints[vt + 2 * (n_in + o)]), int(ints[vt + 2 * (n_in + o) + 1])
-        for j in range(n_t):
-            code, off = int(ints[tt + 3 * (first + j)]), int(ints[tt + 3 * (first + j) + 1])
-            if code in last and floats[off] == floats[off + last[code]]:
-                raise ParameterError(
-                    f"{what}: output {o + 1} term {j + 1} has zero width (a point) under a "
-                    f"maxima defuzzifier, which the C evaluator does not hold yet; use "
-                    f"centroid or bisector, or give the term a width")
 
 
 def _emit_packed(name: str, ints: IntArray, floats: FloatArray, real: Real) -> str:

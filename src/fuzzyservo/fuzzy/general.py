@@ -1474,12 +1474,16 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
             ka, _, _, _ = _gk(cuts[k], cuts[k + 1], c0, ints, f, first, n_items, lab, h, xgk,
                               wgk, wg)
             a0 += abs(ka)
-    span = hi - lo
     if not a0 > 0.0:
-        # no area (only zero-width terms fired): no centroid or bisector, the maxima remain
+        # no area: no centroid or bisector; the maxima are the fired zero-width terms' points
+        # (none fired: NaN, as before they were accepted)
         if mode <= 1:
             return np.nan
-        return _smooth_maxima(ints, f, first, n_items, lab, h, cuts, nc, span, mode)
+        px = np.empty(n_items)
+        pv = np.empty(n_items)
+        n_pt = _pl_points(ints, f, o, n_items, lab, h, px, pv)
+        return _defuzz_segments(0, px, px, pv, pv, mode, px, pv, n_pt)
+    span = hi - lo
     cap = QUAD_MAX_SUB * (nc + 1)
     acc_a = np.empty(cap)
     acc_b = np.empty(cap)
@@ -1558,15 +1562,6 @@ def _smooth(ints: IntArray, f: FloatArray, o: int, n_items: int, lab: IntArray, 
                 return 0.5 * (ta + tb)
             cum += acc_area[i]
         return hi
-    return _smooth_maxima(ints, f, first, n_items, lab, h, cuts, nc, span, mode)
-
-
-@kernel(error_model="numpy")
-def _smooth_maxima(ints: IntArray, f: FloatArray, first: int, n_items: int, lab: IntArray,
-                   h: FloatArray, cuts: FloatArray, nc: int, span: float, mode: int) -> float:
-    """Mean (2), smallest (3) or largest (4) of maximum of a smooth aggregate cut into
-    pieces at ``cuts[:nc]``; a zero-width term at a cut counts as a point (NaN: zero
-    maximum)."""
     # maxima: the cut points, and in every piece each local maximum of a scan of SCAN_CELLS
     # cells (a sum of terms may have several between two knots), located by golden section
     # and refined to the zero of the derivative (values alone place it to ~1e-8 only)
@@ -1612,8 +1607,6 @@ def _smooth_maxima(ints: IntArray, f: FloatArray, first: int, n_items: int, lab:
             ncand += 1
     for i in range(ncand):
         gmax = max(gmax, cv[i])
-    if not gmax > 0.0:
-        return np.nan
     tolm = 1e-12 * gmax
     # plateaus: pieces where g stays at gmax (both ends and the middle)
     plen = 0.0

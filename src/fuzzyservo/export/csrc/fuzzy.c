@@ -824,11 +824,16 @@ FS_MAYBE_UNUSED static long fs_pl_segments(long n_items, const int32_t *lab, con
 }
 
 /* centroid (0), bisector (1), mean (2), smallest (3) or largest (4) of maximum of a
- * piecewise-linear function given by its pieces; NaN for zero area */
+ * piecewise-linear function given by its pieces and by n_pt isolated points (px, pv: the
+ * zero-width terms, no area, read by the maxima only); NaN for zero area (centroid,
+ * bisector) or a zero maximum (general._defuzz_segments) */
 FS_MAYBE_UNUSED static fs_real fs_defuzz_segments(long n_seg, const fs_real *su, const fs_real *sv,
-                                                  const fs_real *gu, const fs_real *gv, long mode) {
-    fs_real area = FS_R(0.0), moment = FS_R(0.0), gmax = FS_R(0.0), ref, span, u, v, tol;
-    long s;
+                                                  const fs_real *gu, const fs_real *gv, long mode,
+                                                  const fs_real *px, const fs_real *pv,
+                                                  long n_pt) {
+    fs_real area = FS_R(0.0), moment = FS_R(0.0), gmax = FS_R(0.0), gpt = FS_R(0.0), ref, span,
+            u, v, tol, best;
+    long s, i, j;
     ref = n_seg > 0 ? su[0] : FS_R(0.0);
     span = n_seg > 0 ? sv[n_seg - 1] - ref : FS_R(1.0);
     if (!(span > FS_R(0.0))) span = FS_R(1.0);
@@ -840,7 +845,8 @@ FS_MAYBE_UNUSED static fs_real fs_defuzz_segments(long n_seg, const fs_real *su,
         area += FS_R(0.5) * (sv[s] - su[s]) * (gu[s] + gv[s]);
         gmax = fs_max(fs_max(gmax, gu[s]), gv[s]);
     }
-    if (!(area > FS_R(0.0))) return FS_NAN;
+    for (i = 0; i < n_pt; ++i) gpt = fs_max(gpt, pv[i]);
+    if (!(area > FS_R(0.0)) && (mode <= 1 || !(gpt > FS_R(0.0)))) return FS_NAN;
     if (mode == 0) return ref + span * (moment * span) / area;
     if (mode == 1) {
         fs_real sc = FS_R(1.0) / gmax, half = FS_R(0.5) * area * sc, acc = FS_R(0.0);
@@ -862,11 +868,13 @@ FS_MAYBE_UNUSED static fs_real fs_defuzz_segments(long n_seg, const fs_real *su,
         }
         return sv[n_seg - 1];
     }
+    /* the maximum over the pieces and the points (gmax itself without zero-width terms) */
+    gmax = fs_max(gmax, gpt);
     tol = FS_TOL_TIE * gmax;
     if (mode == 2) {
         fs_real plen = FS_R(0.0), pmom = FS_R(0.0), minlen, tot = FS_R(0.0), last = -FS_INF;
         long cnt = 0;
-        minlen = FS_TOL_MINLEN * (sv[n_seg - 1] - su[0]);
+        minlen = n_seg > 0 ? FS_TOL_MINLEN * (sv[n_seg - 1] - su[0]) : FS_R(0.0);
         for (s = 0; s < n_seg; ++s) {
             if (gu[s] >= gmax - tol && gv[s] >= gmax - tol && sv[s] - su[s] > minlen) {
                 plen += sv[s] - su[s];
@@ -886,19 +894,52 @@ FS_MAYBE_UNUSED static fs_real fs_defuzz_segments(long n_seg, const fs_real *su,
                 last = sv[s];
             }
         }
+        /* the maximising points of zero width, each place once (a piece's end there is one) */
+        for (i = 0; i < n_pt; ++i) {
+            int seen = 0;
+            if (pv[i] < gmax - tol) continue;
+            for (j = 0; j < i; ++j)
+                if (pv[j] >= gmax - tol && px[j] == px[i]) seen = 1;
+            for (s = 0; s < n_seg; ++s)
+                if ((gu[s] >= gmax - tol && FS_FABS(su[s] - px[i]) <= minlen) ||
+                    (gv[s] >= gmax - tol && FS_FABS(sv[s] - px[i]) <= minlen))
+                    seen = 1;
+            if (!seen) {
+                cnt += 1;
+                tot += px[i];
+            }
+        }
         return tot / FS_R(cnt);
     }
+    best = FS_NAN;
     if (mode == 3) {
         for (s = 0; s < n_seg; ++s) {
-            if (gu[s] >= gmax - tol) return su[s];
-            if (gv[s] >= gmax - tol) return sv[s];
+            if (gu[s] >= gmax - tol) {
+                best = su[s];
+                break;
+            }
+            if (gv[s] >= gmax - tol) {
+                best = sv[s];
+                break;
+            }
         }
+        for (i = 0; i < n_pt; ++i)
+            if (pv[i] >= gmax - tol && !(px[i] >= best)) best = px[i];
+        return best;
     }
     for (s = n_seg - 1; s > -1; --s) {
-        if (gv[s] >= gmax - tol) return sv[s];
-        if (gu[s] >= gmax - tol) return su[s];
+        if (gv[s] >= gmax - tol) {
+            best = sv[s];
+            break;
+        }
+        if (gu[s] >= gmax - tol) {
+            best = su[s];
+            break;
+        }
     }
-    return FS_NAN;
+    for (i = 0; i < n_pt; ++i)
+        if (pv[i] >= gmax - tol && !(px[i] <= best)) best = px[i];
+    return best;
 }
 
 /* ======================================================================================
@@ -993,6 +1034,42 @@ FS_MAYBE_UNUSED static fs_real fs_g(fs_real y, const fs_smooth_ctx *cx) {
     }
     if (cx->agg == 1 && acc > FS_R(1.0)) acc = FS_R(1.0);
     return acc;
+}
+
+/* where a zero-width term sits (triangle a = c, trapezoid a = d), NaN for any other term
+ * (general._point_x) */
+FS_MAYBE_UNUSED static fs_real fs_point_x(long code, const fs_real *f, long off) {
+    if (code == FS_TRI && f[off] == f[off + 2]) return f[off];
+    if (code == FS_TRAP && f[off] == f[off + 3]) return f[off];
+    return FS_NAN;
+}
+
+/* the zero-width items of output o inside its range: their places (px) and the aggregate
+ * there (pv); their number (general._pl_points) */
+FS_MAYBE_UNUSED static long fs_pl_points(const int32_t *ints, const fs_real *f, long o,
+                                         long n_items, const int32_t *lab, const fs_real *h,
+                                         fs_real *px, fs_real *pv) {
+    long n_in = ints[FS_H_NIN], fv = ints[FS_H_FVARS] + 4 * (n_in + o), i, n = 0;
+    fs_smooth_ctx cx;
+    cx.ints = ints;
+    cx.f = f;
+    cx.tt = ints[FS_H_TERMS];
+    cx.impl = ints[FS_H_IMPL];
+    cx.agg = ints[FS_H_AGG];
+    cx.first = ints[ints[FS_H_VARS] + 2 * (n_in + o)];
+    cx.n_items = n_items;
+    cx.lab = lab;
+    cx.h = h;
+    for (i = 0; i < n_items; ++i) {
+        long t = cx.first + lab[i];
+        fs_real x0 = fs_point_x(ints[cx.tt + 3 * t], f, ints[cx.tt + 3 * t + 1]);
+        if (x0 == x0 && f[fv] <= x0 && x0 <= f[fv + 1]) {
+            px[n] = x0;
+            pv[n] = fs_g(x0, &cx);
+            n += 1;
+        }
+    }
+    return n;
 }
 
 /* which smooth piece y lies on. numba: the key is int64 arithmetic that wraps on overflow;
@@ -1342,7 +1419,16 @@ FS_MAYBE_UNUSED static fs_real fs_smooth(const int32_t *ints, const fs_real *f, 
             a0 += FS_FABS(ka);
         }
     }
-    if (!(a0 > FS_R(0.0))) return FS_NAN;
+    if (!(a0 > FS_R(0.0))) {
+        /* no area: no centroid or bisector; the maxima are the fired zero-width terms'
+         * points (none fired: NaN). The knots are done with: their nk_max >= 2 + 4 n_items
+         * places hold the points (px) and the aggregate there (pv) */
+        long n_pt;
+        if (mode <= 1) return FS_NAN;
+        n_pt = fs_pl_points(ints, f, o, n_items, lab, h, knots, knots + n_items);
+        return fs_defuzz_segments(0, knots, knots, knots + n_items, knots + n_items, mode, knots,
+                                  knots + n_items, n_pt);
+    }
     span = hi - lo;
     fs_quad(cuts, nc, a0, span, c0, &cx, stack_a, stack_b, 0, FS_R(0.0), &area, &mom, &res);
     if (!(area > FS_R(0.0))) return FS_NAN;
@@ -1751,7 +1837,14 @@ FS_MAYBE_UNUSED static void fs_sys_eval_s(const fs_real *x, fs_real *out, const 
                     ns = fs_pl_segments(n_items, lab, h, f, ints[base + 1], k0, k1, ints[base + 3],
                                         ints[base + 4], ints[base + 5], impl, agg, lc, m, hh,
                                         cand, su, sv, gu, gv);
-                    val = fs_defuzz_segments(ns, su, sv, gu, gv, dmode);
+                    {
+                        /* the zero-width items (maxima only) in the candidates' scratch,
+                         * which fs_pl_segments is done with (2 + 2 mi + 3 mi^2 >= 2 mi) */
+                        fs_real *px = cand, *pv = cand + mi;
+                        long n_pt = dmode >= 2 ? fs_pl_points(ints, f, o, n_items, lab, h, px,
+                                                              pv) : 0;
+                        val = fs_defuzz_segments(ns, su, sv, gu, gv, dmode, px, pv, n_pt);
+                    }
                 } else if (mode == FS_M_SING) {
                     val = fs_singletons(ints, f, o, n_items, lab, h, hts, dmode);
                 } else {
