@@ -7,13 +7,12 @@ pytest-xdist issue #1386)."""
 
 from __future__ import annotations
 
-import fcntl
 from pathlib import Path
 
 import pytest
 
 from fuzzyservo.cli import main
-from tests.helpers import make_recipe
+from tests.helpers import make_recipe, run_once
 
 
 def reproduce_argv(out: Path) -> list[str]:
@@ -29,18 +28,7 @@ def reproduced(tmp_path_factory: pytest.TempPathFactory, worker_id: str) -> Path
 
     Shared, read-only: a test that writes into a reproduction copies it first.
     """
-    if worker_id == "master":  # not distributed: a folder of this session
-        root = tmp_path_factory.mktemp("reproduce")
-    else:  # the session's base folder, common to its workers
-        root = tmp_path_factory.getbasetemp().parent
-    out = root / "reproduced" / "results" / "paper"
-    done = root / "reproduced" / "complete"
-    with (root / "reproduced.lock").open("w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        try:
-            if not done.is_file():
-                assert main(reproduce_argv(out)) == 0
-                done.write_text("ok\n")
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
-    return out
+    def build(folder: Path) -> None:
+        assert main(reproduce_argv(folder / "results" / "paper")) == 0
+
+    return run_once(tmp_path_factory, worker_id, "reproduced", build) / "results" / "paper"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fcntl
 import shlex
 import signal
 import subprocess
@@ -96,3 +97,25 @@ def count_lines(fn: Callable[..., T], *args: Any, limit: int | None = None) -> t
     finally:
         sys.settrace(previous)
     return result, count
+
+
+def run_once(tmp_path_factory: Any, worker_id: str, name: str,
+             build: Callable[[Path], None]) -> Path:
+    """The folder ``name`` that ``build(folder)`` makes, once per test session: under
+    pytest-xdist the first worker to need it builds it under a file lock, the others wait
+    and reuse it. Shared, read-only: a test that writes into it copies it first."""
+    if worker_id == "master":  # not distributed: a folder of this session
+        root = tmp_path_factory.mktemp(name)
+    else:  # the session's base folder, common to its workers
+        root = tmp_path_factory.getbasetemp().parent
+    folder = root / name
+    done = root / f"{name}.complete"
+    with (root / f"{name}.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            if not done.is_file():
+                build(folder)
+                done.write_text("ok\n")
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
+    return folder

@@ -39,8 +39,8 @@ CLOCK_ALLOWED: dict[tuple[str, str], str] = {
     ("cli/test_interrupts.py", "_kill_and_check"): "the write's duration, to spread the "
                                                    "signals over it",
     ("cli/test_interrupts.py", "handler"): "deadline of the wait for the interruption",
-    ("study/test_output_folder.py", "_kill_reproduce"): "the writes' duration, to spread "
-                                                        "the kills over them",
+    ("study/test_output_folder.py", "two_runs_timed"): "the writes' duration, to spread "
+                                                       "the kills over them",
 }
 
 

@@ -23,7 +23,7 @@ from fuzzyservo._io import sha256_file
 from fuzzyservo.cli import main
 from fuzzyservo.study.cache import CacheEntryError, load_study
 from fuzzyservo.study.runner import GAIN_FILES, MANIFEST, default_gains_dir, folder_status
-from tests.helpers import start_fuzzyservo, wait_for_temporary
+from tests.helpers import run_once, start_fuzzyservo, wait_for_temporary
 
 MARKER = "/tmp/fuzzyservo-cache-ran-code"  # noqa: S108  (what the crafted pickle would create)
 
@@ -176,18 +176,45 @@ def _check_folder(out: Path) -> str:
     return status
 
 
-def _kill_reproduce(sig: int, n: int, seed: int, tmp_path: Path) -> list[tuple[int, str]]:
-    sp = tmp_path / "sp.toml"
-    sp.write_text("[supply]\npressure = 7.5e6\n")
+def _configs(start: Path, out: Path) -> list[list[str]]:
+    """The two parameter sets the kills alternate: the file's override, and none."""
+    return [[*BASE, "--out", str(out), "--params", str(start / "sp.toml")],
+            [*BASE, "--out", str(out)]]
+
+
+@pytest.fixture(scope="session")
+def two_sets(tmp_path_factory: pytest.TempPathFactory, worker_id: str) -> Path:
+    """A folder ``rp`` written by a run with a parameter file and then by one without (the
+    C8 sweep's files back), and the writes' duration; made once per session (conftest's
+    tests.helpers.run_once), each test copies ``rp``."""
+    def two_runs_timed(start: Path) -> None:
+        start.mkdir(parents=True, exist_ok=True)
+        (start / "sp.toml").write_text("[supply]\npressure = 7.5e6\n")
+        out = start / "rp"
+        configs = _configs(start, out)
+        t0 = time.perf_counter()
+        assert main(configs[0]) == 0  # row 14: the file's override is stated
+        doc = json.loads((out / MANIFEST).read_text())
+        assert doc["overrides"] == {"supply.pressure": 7.5e6}
+        assert "supply.pressure = 7500000.0" in (out / "report.html").read_text()
+        assert main(configs[1]) == 0
+        (start / "write_time").write_text(repr(0.6 * (time.perf_counter() - t0) / 2))
+
+    return run_once(tmp_path_factory, worker_id, "two-sets", two_runs_timed)
+
+
+def _copy_of(start: Path, tmp_path: Path) -> Path:
     out = tmp_path / "rp"
-    configs = [[*BASE, "--out", str(out), "--params", str(sp)], [*BASE, "--out", str(out)]]
-    t0 = time.perf_counter()
-    assert main(configs[0]) == 0  # row 14: the file's override is stated
-    doc = json.loads((out / MANIFEST).read_text())
-    assert doc["overrides"] == {"supply.pressure": 7.5e6}
-    assert "supply.pressure = 7500000.0" in (out / "report.html").read_text()
-    assert main(configs[1]) == 0
-    write_time = 0.6 * (time.perf_counter() - t0) / 2
+    shutil.copytree(start / "rp", out, symlinks=True)
+    assert _check_folder(out) == "complete"
+    return out
+
+
+def _kill_reproduce(sig: int, n: int, seed: int, start: Path, tmp_path: Path
+                    ) -> list[tuple[int, str]]:
+    out = _copy_of(start, tmp_path)
+    configs = _configs(start, out)
+    write_time = float((start / "write_time").read_text())
     rng = random.Random(seed)
     seen = []
     for i in range(n):
@@ -209,14 +236,14 @@ def _kill_reproduce(sig: int, n: int, seed: int, tmp_path: Path) -> list[tuple[i
 
 
 @pytest.mark.slow
-def test_a_run_without_the_c8_sweeps_then_one_with_them(tmp_path: Path) -> None:
+def test_a_run_without_the_c8_sweeps_then_one_with_them(two_sets: Path, tmp_path: Path
+                                                        ) -> None:
     # --params leaves the C8 sweeps out and removes their recorded files, not the sweep's
-    # lock: the next run with them found a folder 'not a sweep folder' and stopped
-    sp = tmp_path / "sp.toml"
-    sp.write_text("[supply]\npressure = 7.5e6\n")
-    out = tmp_path / "rp"
-    assert main([*BASE, "--out", str(out)]) == 0
-    assert main([*BASE, "--out", str(out), "--params", str(sp)]) == 0
+    # lock: the next run with them found a folder 'not a sweep folder' and stopped (the
+    # copy's last run had them)
+    out = _copy_of(two_sets, tmp_path)
+    assert (out / "c8-sweep-linear.html").is_file()
+    assert main([*BASE, "--out", str(out), "--params", str(two_sets / "sp.toml")]) == 0
     assert not (out / "c8-sweep-linear.html").exists()
     assert main([*BASE, "--out", str(out)]) == 0
     assert (out / "c8-sweep-linear.html").is_file()
@@ -224,17 +251,18 @@ def test_a_run_without_the_c8_sweeps_then_one_with_them(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_reproduce_killed_by_sigkill_at_random_points(tmp_path: Path) -> None:
+def test_reproduce_killed_by_sigkill_at_random_points(two_sets: Path, tmp_path: Path) -> None:
     """Row 7: ``kill -9`` at 10 random points of the writing, alternating two parameter
     sets."""
-    seen = _kill_reproduce(signal.SIGKILL, 10, 7, tmp_path)
+    seen = _kill_reproduce(signal.SIGKILL, 10, 7, two_sets, tmp_path)
     assert sum(code == -signal.SIGKILL for code, _ in seen) >= 7, seen
     assert any(state == "incomplete" for _, state in seen), seen
 
 
 @pytest.mark.slow
-def test_reproduce_interrupted_by_ctrl_c_at_random_points(tmp_path: Path) -> None:
-    seen = _kill_reproduce(signal.SIGINT, 10, 8, tmp_path)
+def test_reproduce_interrupted_by_ctrl_c_at_random_points(two_sets: Path, tmp_path: Path
+                                                         ) -> None:
+    seen = _kill_reproduce(signal.SIGINT, 10, 8, two_sets, tmp_path)
     assert all(code in (0, 130) for code, _ in seen), seen
     assert sum(code == 130 for code, _ in seen) >= 7, seen
 
