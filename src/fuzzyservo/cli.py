@@ -85,7 +85,18 @@ def _unraisable(previous: Any) -> Any:
     return hook
 
 
-_STOP: dict[str, Any] = {"handled": False, "timer": None}
+_STOP: dict[str, Any] = {"handled": False, "timer": None, "sigint": False}
+
+
+def _on_sigint(signum: int, frame: Any) -> None:
+    """Ctrl-C: recorded, then Python's own KeyboardInterrupt.
+
+    The record keeps an interruption one when a compiled library turns it into an error of
+    its own: the KeyboardInterrupt raised inside one of the Python calls of matplotlib's Agg
+    renderer is dropped, and the renderer raises ``ValueError: Invalid bounding box`` instead
+    (seen while ``reproduce`` drew Fig. 3). :func:`_foreign` reads it."""
+    _STOP["sigint"] = True
+    signal.default_int_handler(signum, frame)
 
 
 def _resend(signum: int) -> None:
@@ -127,6 +138,8 @@ def _foreign(exc: BaseException) -> int:
     stop = next((e for e in error_chain(exc) if isinstance(e, KeyboardInterrupt)), None)
     if stop is not None:
         raise stop from None
+    if _STOP["sigint"]:  # Ctrl-C came and a library made another error of it (_on_sigint)
+        raise KeyboardInterrupt from None
     ours = _ours(exc)
     if ours is None:
         raise exc
@@ -190,9 +203,13 @@ def _command_of(argv: Sequence[str]) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI with ``argv`` (default: ``sys.argv[1:]``) and return the exit status."""
     terminate_gracefully(True)
-    _STOP.update(handled=False, timer=None)
+    _STOP.update(handled=False, timer=None, sigint=False)
     hook = sys.unraisablehook
     sys.unraisablehook = _unraisable(hook)
+    sigint = None
+    with contextlib.suppress(ValueError):  # ValueError: not the main thread (no handlers)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            sigint = signal.signal(signal.SIGINT, _on_sigint)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
@@ -211,6 +228,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(INTERRUPTED, file=sys.stderr)
         return EXIT_INTERRUPT
     finally:
+        if sigint is not None:
+            with contextlib.suppress(ValueError):
+                signal.signal(signal.SIGINT, sigint)
         sys.unraisablehook = hook
         terminate_gracefully(False)
 

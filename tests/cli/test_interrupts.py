@@ -274,3 +274,46 @@ def test_an_interruption_wrapped_by_a_library_is_still_one_line(
     assert main(["linearize"]) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "Traceback" not in err[0]
+
+
+def _dropping_parser(interrupt: bool) -> object:
+    """A parser whose command is a library that drops a KeyboardInterrupt and raises an
+    error of its own, as matplotlib's Agg renderer does (``ValueError: Invalid bounding
+    box``, seen once in the reproduce Ctrl-C test while Fig. 3 was drawn); without the
+    interruption it raises the same error."""
+    import argparse
+
+    def handler(args: argparse.Namespace) -> int:
+        try:
+            if interrupt:
+                signal.raise_signal(signal.SIGINT)  # Python raises it before returning
+        except KeyboardInterrupt:
+            pass  # dropped by the library: no KeyboardInterrupt in the chain below
+        raise ValueError("Invalid bounding box")
+
+    def parser(**_: object) -> argparse.ArgumentParser:
+        p = argparse.ArgumentParser()
+        p.set_defaults(handler=handler)
+        return p
+
+    return parser
+
+
+def test_ctrl_c_a_library_turned_into_its_own_error_is_still_one_line(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    import fuzzyservo.cli as cli
+
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)  # xdist ignores SIGINT
+    try:
+        monkeypatch.setattr(cli, "build_parser", _dropping_parser(True))
+        assert cli.main([]) == 130
+        err = capsys.readouterr().err
+        assert err == "fuzzyservo: interrupted; files being written were left as they were\n"
+        # without a Ctrl-C the same error is a defect: its traceback, as before
+        monkeypatch.setattr(cli, "build_parser", _dropping_parser(False))
+        with pytest.raises(ValueError, match="Invalid bounding box"):
+            cli.main([])
+        # and main leaves Python's own handler in place
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        signal.signal(signal.SIGINT, old)
