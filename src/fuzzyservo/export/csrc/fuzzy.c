@@ -1015,6 +1015,21 @@ typedef struct {
     const fs_real *h;
 } fs_smooth_ctx;
 
+/* the context of output o's fired items */
+FS_MAYBE_UNUSED static void fs_ctx_init(fs_smooth_ctx *cx, const int32_t *ints, const fs_real *f,
+                                        long o, long n_items, const int32_t *lab,
+                                        const fs_real *h) {
+    cx->ints = ints;
+    cx->f = f;
+    cx->tt = ints[FS_H_TERMS];
+    cx->impl = ints[FS_H_IMPL];
+    cx->agg = ints[FS_H_AGG];
+    cx->first = ints[ints[FS_H_VARS] + 2 * (ints[FS_H_NIN] + o)];
+    cx->n_items = n_items;
+    cx->lab = lab;
+    cx->h = h;
+}
+
 /* the aggregate at y */
 FS_MAYBE_UNUSED static fs_real fs_g(fs_real y, const fs_smooth_ctx *cx) {
     fs_real acc = FS_R(0.0), mu, v;
@@ -1051,15 +1066,7 @@ FS_MAYBE_UNUSED static long fs_pl_points(const int32_t *ints, const fs_real *f, 
                                          fs_real *px, fs_real *pv) {
     long n_in = ints[FS_H_NIN], fv = ints[FS_H_FVARS] + 4 * (n_in + o), i, n = 0;
     fs_smooth_ctx cx;
-    cx.ints = ints;
-    cx.f = f;
-    cx.tt = ints[FS_H_TERMS];
-    cx.impl = ints[FS_H_IMPL];
-    cx.agg = ints[FS_H_AGG];
-    cx.first = ints[ints[FS_H_VARS] + 2 * (n_in + o)];
-    cx.n_items = n_items;
-    cx.lab = lab;
-    cx.h = h;
+    fs_ctx_init(&cx, ints, f, o, n_items, lab, h);
     for (i = 0; i < n_items; ++i) {
         long t = cx.first + lab[i];
         fs_real x0 = fs_point_x(ints[cx.tt + 3 * t], f, ints[cx.tt + 3 * t + 1]);
@@ -1339,15 +1346,7 @@ FS_MAYBE_UNUSED static fs_real fs_smooth(const int32_t *ints, const fs_real *f, 
     fs_smooth_ctx cx;
     fs_cands cs;
     if (!scr) return FS_NAN; /* the caller has no smooth scratch: the system has no such output */
-    cx.ints = ints;
-    cx.f = f;
-    cx.tt = ints[FS_H_TERMS];
-    cx.impl = ints[FS_H_IMPL];
-    cx.agg = ints[FS_H_AGG];
-    cx.first = ints[ints[FS_H_VARS] + 2 * (n_in + o)];
-    cx.n_items = n_items;
-    cx.lab = lab;
-    cx.h = h;
+    fs_ctx_init(&cx, ints, f, o, n_items, lab, h);
     /* knots of the fired terms */
     for (i = 0; i < n_items; ++i) nk_max += ints[cx.tt + 3 * (cx.first + lab[i]) + 2] + 4;
     stack_a = scr;
