@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from fuzzyservo.plots.study_figures import (
-    CONTROLLER_COLOURS,
+    NO_COLOUR,
     SWEEP_LINTHRESH_MS,
     VARIANT_COLOURS,
     Curve,
@@ -28,7 +28,11 @@ from fuzzyservo.plots.study_figures import (
     oscillation,
     step_figure,
 )
+from fuzzyservo.registry import controller_colour
 
+#: The synthetic runs' colours, as a caller gives them (the study: its designs' colours)
+COLOURS = {"pid_paper_1": "#d62728", "pid_tuned": "#8c564b", "pid2_tuned": "#9467bd",
+           "stfpi": "#1f77b4", "stfpi_delay": "#d55e00"}
 TS = 1e-3  # sample time of the synthetic runs [s]
 T = np.arange(0.0, 20.0 + TS / 2, TS)
 STEP = 0.1  # [m]
@@ -37,7 +41,8 @@ STEP = 0.1  # [m]
 def _run(key: str, y: np.ndarray, *, u: np.ndarray | None = None, label: str | None = None,
          envelope: bool = False) -> Curve:
     return Curve(key, label or key, T, y, np.zeros_like(T) if u is None else u,
-                 np.full_like(T, np.nan), np.full_like(T, STEP), envelope=envelope)
+                 np.full_like(T, np.nan), np.full_like(T, STEP), envelope=envelope,
+                 colour=COLOURS.get(key))
 
 
 def _rise(tau: float) -> np.ndarray:
@@ -66,11 +71,11 @@ def test_coinciding_curves_are_both_visible_and_said_to_coincide() -> None:
     assert any(t.startswith("2-DOF (dashed: within 0.4 mm of 1-DOF)") for t in
                _legend_texts(fig))
     full = fig.axes[0]
-    (under,) = _lines(full, CONTROLLER_COLOURS["pid_tuned"])
-    (over,) = _lines(full, CONTROLLER_COLOURS["pid2_tuned"])
+    (under,) = _lines(full, COLOURS["pid_tuned"])
+    (over,) = _lines(full, COLOURS["pid2_tuned"])
     assert under.get_linewidth() > 2 * over.get_linewidth()  # the earlier one widened
     assert over.get_linestyle() == "--" and over.get_zorder() > under.get_zorder()
-    assert _lines(full, CONTROLLER_COLOURS["stfpi"])[0].get_linestyle() == "-"
+    assert _lines(full, COLOURS["stfpi"])[0].get_linestyle() == "-"
 
 
 def test_command_figure_zooms_on_the_kick_and_keeps_the_limit_off_the_frame() -> None:
@@ -85,7 +90,7 @@ def test_command_figure_zooms_on_the_kick_and_keeps_the_limit_off_the_frame() ->
     for ax in (full, zoom):
         lo, hi = ax.get_ylim()
         assert hi > 100.0 + 5.0 and lo < -5.0  # |u| = 100 % and 0 % both inside, not on it
-    (kick,) = _lines(zoom, CONTROLLER_COLOURS["pid_paper_1"])
+    (kick,) = _lines(zoom, COLOURS["pid_paper_1"])
     assert kick.get_xdata()[-1] <= 0.2 + 2 * TS  # the zoom draws the window only
     texts = _legend_texts(fig)
     assert "PID (|u| = 100 % from 0 to 20 ms)" in texts and "fuzzy" in texts
@@ -107,12 +112,12 @@ def test_delay_figure_has_a_difference_panel_in_mm() -> None:
     delayed = _run("stfpi_delay", _rise(0.5) + 3e-4 * np.sin(3 * T), label="6 ms")
     fig = delay_figure(nominal, delayed, "t")
     top_full, top_zoom, bottom_full, bottom_zoom = fig.axes
-    (diff,) = _lines(bottom_full, CONTROLLER_COLOURS["stfpi_delay"])
+    (diff,) = _lines(bottom_full, COLOURS["stfpi_delay"])
     np.testing.assert_allclose(diff.get_ydata(), 0.3 * np.sin(3 * T), atol=1e-12)  # [mm]
     assert bottom_zoom.get_xlim() == (0.0, 4.0)
     assert "difference (with delay $-$ without): largest $|\\Delta x|$ = 0.3 mm" in \
         _legend_texts(fig)
-    assert to_hex(CONTROLLER_COLOURS["stfpi_delay"]) != to_hex(CONTROLLER_COLOURS["stfpi"])
+    assert to_hex(COLOURS["stfpi_delay"]) != to_hex(COLOURS["stfpi"])
 
 
 DELAYS = np.array([0.0, 0.002, 0.006, 0.01, 0.02, 0.05, 0.1, 0.5, 1.0])  # [s]
@@ -136,7 +141,7 @@ def test_settling_sweep_legend_lists_only_what_is_drawn_and_marks_failures() -> 
     disagrees with the failure rule."""
     settling, failed, labels = _sweep()
     fig = delay_sweep_figure(DELAYS, settling, labels, "t", ylabel="s", failed=failed,
-                             run_length=20.0)
+                             run_length=20.0, colours=COLOURS)
     main, strip = fig.axes
     assert main.get_xscale() == "symlog"
     assert main.xaxis.get_transform().linthresh == SWEEP_LINTHRESH_MS == 10.0
@@ -148,11 +153,11 @@ def test_settling_sweep_legend_lists_only_what_is_drawn_and_marks_failures() -> 
     assert [t.get_text() for t in strip.get_yticklabels()] == [
         "self-tuning", "PID tuned", "PID paper"]
     for key, row in (("stfpi", 0), ("pid_tuned", 1), ("pid_paper_1", 2)):
-        (marks,) = _lines(strip, CONTROLLER_COLOURS[key])
+        (marks,) = _lines(strip, COLOURS[key])
         assert marks.get_marker() == "x"
         np.testing.assert_array_equal(marks.get_xdata(), DELAYS[failed[key]] * 1e3)
         assert set(marks.get_ydata()) == {row}
-    (drawn,) = _lines(main, CONTROLLER_COLOURS["pid_tuned"])
+    (drawn,) = _lines(main, COLOURS["pid_tuned"])
     assert np.isnan(drawn.get_ydata()[6]) and np.isnan(drawn.get_ydata()[8])  # failures
     assert "no 2 % settling within the 20 s run, or diverged" in strip.get_title(loc="left")
 
@@ -161,14 +166,14 @@ def test_overshoot_sweep_shows_failing_runs_hollow_and_the_claims_limit() -> Non
     settling, failed, labels = _sweep()
     overshoot = {k: np.linspace(0.0, 200.0, DELAYS.size) for k in settling}
     fig = delay_sweep_figure(DELAYS, overshoot, labels, "t", ylabel="%", failed=failed,
-                             run_length=20.0, show_failed=True, limit=10.0,
+                             run_length=20.0, colours=COLOURS, show_failed=True, limit=10.0,
                              limit_label="overshoot limit of claims C6, C8 (10 %)", log_y=True)
     texts = _legend_texts(fig)
     assert texts == ["self-tuning", "PID tuned", "PID paper", "hollow: the run fails (see "
                      "below)", "overshoot limit of claims C6, C8 (10 %)"]
     main = fig.axes[0]
     assert main.get_yscale() == "symlog"
-    hollow = [ln for ln in _lines(main, CONTROLLER_COLOURS["pid_paper_1"])
+    hollow = [ln for ln in _lines(main, COLOURS["pid_paper_1"])
               if ln.get_marker() == "o"]
     assert hollow and all(ln.get_markerfacecolor() == "white" for ln in hollow)
 
@@ -207,6 +212,17 @@ def test_oscillating_run_is_drawn_as_its_envelope_and_in_full_in_the_zoom() -> N
     assert len(line.get_xdata()) == int(round(4.0 / TS)) + 2
 
 
+def test_a_run_is_drawn_in_the_colour_it_is_given() -> None:
+    """The figures hold no colour of a controller: each run comes with its own (the study
+    gives its designs' colours), a changed plant without one takes the palette's, any other
+    run grey."""
+    fig = step_figure([_run("stfpi", _rise(0.5)), _run("other", _rise(0.7)),
+                       _run("variant2", _rise(0.9))], "t")
+    full = fig.axes[0]
+    for colour in (COLOURS["stfpi"], NO_COLOUR, VARIANT_COLOURS[2]):
+        assert len(_lines(full, colour)) == 1, colour
+
+
 def test_minmax_envelope() -> None:
     tb, lo, hi = minmax_envelope(T, np.sin(2 * np.pi * 2.0 * T), 0.75)
     assert tb.size == lo.size == hi.size == math.ceil(T.size / 750) + 1
@@ -229,7 +245,7 @@ def _lab(colour: str) -> np.ndarray:
 def test_changed_plants_have_distinct_colours() -> None:
     """Issue 10: two olive tones could not be told apart (#637939 and #8c6d31: 25 apart)."""
     assert np.linalg.norm(_lab("#637939") - _lab("#8c6d31")) < 40  # the old pair fails
-    shown = [CONTROLLER_COLOURS["stfpi"], *VARIANT_COLOURS]  # the robustness figure's
+    shown = [controller_colour("stfpi"), *VARIANT_COLOURS]  # the robustness figure's
     for i, a in enumerate(shown):
         for b in shown[i + 1:]:
             assert np.linalg.norm(_lab(a) - _lab(b)) >= 40, (a, b)

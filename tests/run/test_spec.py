@@ -171,10 +171,24 @@ def test_a_user_option_reaches_every_front_end() -> None:
     assert "--tracking-mode" not in _cli_flags()
 
 
-def test_kind_colours_are_the_studys() -> None:
-    from fuzzyservo.plots.study_figures import CONTROLLER_COLOURS as C
+def test_the_study_draws_each_design_in_its_kinds_colour() -> None:
+    """The kinds' colours are declared once, in the registry: the study draws a design in its
+    kind's colour, and only a design that shares its kind with another has one of its own;
+    no two designs of the study share a colour."""
+    from fuzzyservo.registry import controller_names
+    from fuzzyservo.study.paper_study import DESIGN_COLOURS, study_cases
+    from fuzzyservo.study.runner import default_gains_dir, load_tuned
 
-    assert [controller_colour(n) for n in ("p", "pi", "pid", "pid2", "fpi", "stfpi")] == [
-        C["pid_paper_1"], C["pid_paper_2"], C["pid_tuned"], C["pid2_tuned"], C["fpi"],
-        C["stfpi"]]
+    designs = {k: (v.controller, dict(v.gains))
+               for k, v in load_tuned("linear", default_gains_dir()).items()}
+    cases = study_cases(designs)
+    kinds = [c.kind for c in cases]
+    for c in cases:
+        if c.key in DESIGN_COLOURS:
+            assert kinds.count(c.kind) > 1, c.key  # its own colour only beside its kind's
+        else:
+            assert c.colour == controller_colour(c.kind)
+    drawn = [c.colour for c in cases] + [DESIGN_COLOURS["stfpi_delay"]]  # + Fig. 8's
+    assert len(set(drawn)) == len(drawn)
+    assert len({controller_colour(n) for n in controller_names()}) == len(controller_names())
     assert controller_colour("no-such-kind") == "#17becf"  # the fallback's first

@@ -10,7 +10,8 @@ and how fast a run oscillates (:func:`oscillation`) and its min/max band
 
 Choices (docs/model.md, "Figures"):
 
-- one colour per controller throughout (:data:`CONTROLLER_COLOURS`); the changed plants take
+- each run in the colour its caller gives it (:attr:`Curve.colour`; the study draws each
+  controller in one colour throughout, its kind's from the registry); the changed plants take
   colours of a colour-blind-safe palette (:data:`VARIANT_COLOURS`);
 - a curve within a given distance of an earlier one over the whole run is drawn dashed over
   the earlier, widened one, and its legend label says how far apart they are;
@@ -27,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -41,8 +42,8 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 __all__ = [
-    "CONTROLLER_COLOURS",
     "DPI",
+    "NO_COLOUR",
     "SWEEP_LINTHRESH_MS",
     "VARIANT_COLOURS",
     "Coincidence",
@@ -59,17 +60,8 @@ __all__ = [
     "step_figure",
 ]
 
-#: Fixed colour of each controller of the study, the same in every figure.
-CONTROLLER_COLOURS: dict[str, str] = {
-    "pid_paper_1": "#d62728",   # red
-    "pid_paper_2": "#ff7f0e",   # orange
-    "pid_tuned": "#8c564b",     # brown
-    "pid2_tuned": "#9467bd",    # purple
-    "fpi": "#2ca02c",           # green
-    "stfpi": "#1f77b4",         # blue
-    "stfpi_10": "#e377c2",      # pink
-    "stfpi_delay": "#d55e00",   # vermillion: only in Fig. 8, beside the blue of stfpi
-}
+#: Colour of a run given none (:attr:`Curve.colour`).
+NO_COLOUR = "#7f7f7f"
 
 #: Colours of the changed plants (robustness figure), beside the nominal run's blue:
 #: vermillion, bluish green and reddish purple of the Okabe-Ito colour-blind-safe palette,
@@ -90,10 +82,12 @@ _REFERENCE: dict[str, Any] = {"color": "#555555", "lw": 1.0, "ls": (0, (4, 3))}
 
 @dataclass(frozen=True, slots=True)
 class Curve:
-    """One run as drawn: ``key`` (its colour), legend label and the signals [SI].
+    """One run as drawn: ``key`` (which run), legend label and the signals [SI].
 
     ``envelope`` draws the run, over its full length, as its rise and then its min/max band
-    (for a run that oscillates without settling); zoom panels draw it in full.
+    (for a run that oscillates without settling); zoom panels draw it in full. ``colour``
+    is the run's colour (None: a changed plant's, ``variant<i>``, takes the i-th of
+    :data:`VARIANT_COLOURS`, any other :data:`NO_COLOUR`).
     """
 
     key: str
@@ -105,6 +99,7 @@ class Curve:
     r: FloatArray
     linestyle: str | tuple[float, tuple[float, ...]] = "-"
     envelope: bool = False
+    colour: str | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -126,10 +121,12 @@ def _hatch(key: str) -> str:
     return _HATCHES[0]
 
 
-def _colour(key: str) -> str:
-    if key.startswith("variant") and key[7:].isdigit():
-        return VARIANT_COLOURS[int(key[7:]) % len(VARIANT_COLOURS)]
-    return CONTROLLER_COLOURS.get(key, "#7f7f7f")
+def _colour(c: Curve) -> str:
+    if c.colour is not None:
+        return c.colour
+    if c.key.startswith("variant") and c.key[7:].isdigit():
+        return VARIANT_COLOURS[int(c.key[7:]) % len(VARIANT_COLOURS)]
+    return NO_COLOUR
 
 
 # --- data: what the figures mark -------------------------------------------------------------
@@ -227,7 +224,7 @@ def _draw_positions(ax: Axes, curves: Sequence[Curve], y0: float,
     w = _window(ref.t, until) if until is not None else slice(None)
     ax.plot(ref.t[w], (ref.r[w] - y0) * 1e3, label="reference", **_REFERENCE)
     for c, style in zip(curves, styles, strict=True):
-        colour = _colour(c.key)
+        colour = _colour(c)
         if c.envelope and envelopes:
             # the rise as a line, then the oscillation as its min/max band over 1.5 periods
             # (at least 1/400 of the run, about a pixel column)
@@ -269,10 +266,9 @@ def step_figure(curves: Sequence[Curve], title: str, *, y0: float = 0.0,
     labelled = list(curves)
     for p in pairs:
         c = labelled[p.later]
-        labelled[p.later] = Curve(
-            c.key, f"{c.label} (dashed: within {p.max_diff * 1e3:.2g} mm of "
-                   f"{curves[p.earlier].label})", c.t, c.y, c.u, c.alpha, c.r, c.linestyle,
-            c.envelope)
+        labelled[p.later] = replace(
+            c, label=f"{c.label} (dashed: within {p.max_diff * 1e3:.2g} mm of "
+                     f"{curves[p.earlier].label})")
     styles = _styles(curves, pairs)
     t_end = float(curves[0].t[-1])
     two = zoom is not None and zoom < t_end
@@ -325,7 +321,7 @@ def command_figure(curves: Sequence[Curve], title: str, *, zoom: float = 0.2,
                           f"{sat[1] * 1e3:.3g} ms)")
             u = c.u[w] * 100.0
             shown.append(u)
-            ax.step(c.t[w], u, where="post", color=_colour(c.key), lw=1.3, ls=c.linestyle,
+            ax.step(c.t[w], u, where="post", color=_colour(c), lw=1.3, ls=c.linestyle,
                     label=label)
         if saturates:
             for s in (-1.0, 1.0):
@@ -355,7 +351,7 @@ def alpha_figure(curves: Sequence[Curve], title: str) -> Figure:
     fig = _figure(8.0, 4.4)
     ax = fig.add_subplot(1, 1, 1)
     for c in curves:
-        ax.step(c.t, c.alpha, where="post", color=_colour(c.key), lw=1.4, ls=c.linestyle,
+        ax.step(c.t, c.alpha, where="post", color=_colour(c), lw=1.4, ls=c.linestyle,
                 label=c.label)
     ax.set_ylim(0.0, 1.0)
     ax.set_xlim(0.0, float(curves[0].t[-1]))
@@ -385,7 +381,7 @@ def delay_figure(nominal: Curve, delayed: Curve, title: str, *, y0: float = 0.0,
         top.set_ylabel(r"piston position $x - x(0)$ [mm]")
         top.set_title(f"first {zoom:g} s" if until is not None else f"whole run ({t_end:g} s)")
         w = _window(nominal.t, until) if until is not None else slice(None)
-        bottom.plot(nominal.t[w], diff[w], color=_colour(delayed.key), lw=1.2,
+        bottom.plot(nominal.t[w], diff[w], color=_colour(delayed), lw=1.2,
                     label=rf"difference (with delay $-$ without): largest "
                           rf"$|\Delta x|$ = {np.max(np.abs(diff)):.3g} mm")
         bottom.axhline(0.0, color="black", lw=0.6)
@@ -415,6 +411,7 @@ def _minor_ticks(top_ms: float) -> list[float]:
 def delay_sweep_figure(delays: FloatArray, values: Mapping[str, FloatArray],
                        labels: Mapping[str, str], title: str, *, ylabel: str,
                        failed: Mapping[str, BoolArray], run_length: float,
+                       colours: Mapping[str, str] | None = None,
                        show_failed: bool = False, limit: float | None = None,
                        limit_label: str = "", mark: tuple[float, str] | None = None,
                        log_y: bool = False) -> Figure:
@@ -427,6 +424,8 @@ def delay_sweep_figure(delays: FloatArray, values: Mapping[str, FloatArray],
         The sweep's delays [s].
     values, labels : mapping
         Per controller key: the metric at each delay [unit of ``ylabel``]; legend label.
+    colours : mapping, optional
+        Per controller key: its colour (a key not given: :data:`NO_COLOUR`).
     title, ylabel : str
         Figure title and y-axis label.
     failed : mapping of key to bool ndarray
@@ -456,9 +455,12 @@ def delay_sweep_figure(delays: FloatArray, values: Mapping[str, FloatArray],
                                  height_ratios=(3.6, 0.35 + 0.24 * len(fails)))
     else:
         ax, strip = fig.add_subplot(1, 1, 1), None
+    def colour_of(key: str) -> str:
+        return (colours or {}).get(key, NO_COLOUR)
+
     hollow = False
     for key, v in values.items():
-        colour = _colour(key)
+        colour = colour_of(key)
         ok = ~bad[key] & np.isfinite(v)
         if ok.any():
             ax.plot(d_ms, np.where(ok, v, np.nan), color=colour, lw=1.5, marker="o", ms=4,
@@ -508,10 +510,10 @@ def delay_sweep_figure(delays: FloatArray, values: Mapping[str, FloatArray],
         for row, key in enumerate(fails):
             f = bad[key]
             strip.plot(d_ms[f], np.full(int(f.sum()), row), ls="none", marker="x", ms=6,
-                       mew=1.6, color=_colour(key))
+                       mew=1.6, color=colour_of(key))
         strip.set_yticks(range(len(fails)), [labels[k] for k in fails], fontsize=7)
         for tick, key in zip(strip.get_yticklabels(), fails, strict=True):
-            tick.set_color(_colour(key))
+            tick.set_color(colour_of(key))
         strip.set_ylim(len(fails) - 0.5, -0.5)
         strip.set_title(f"× fails at this delay: no 2 % settling within the {run_length:g} s "
                         f"run, or diverged", fontsize=8, loc="left")

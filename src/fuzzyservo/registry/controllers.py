@@ -493,19 +493,19 @@ _KDE = GainSpec(name="kde", unit="1/m per sample",
                 search=(10.0, 1e6))
 _KDU = GainSpec(name="kdu", unit="-", description="output scaling K_Δu", search=(1e-5, 1.0))
 
-# Colours: the study's fixed colour of each controller (plots.study_figures.CONTROLLER_COLOURS,
-# a test holds them equal): tuned PID brown, 2-DOF PID purple, fuzzy PI green, self-tuning
-# fuzzy PI blue; the P and PI, which the study has only as the paper's PIDs, take those
-# runs' red and orange.
+# Colours: each kind's runs, on the page and in the study's figures (which draw each design in
+# its kind's colour; study.paper_study.DESIGN_COLOURS names the few designs that share a kind
+# with another): PID brown, 2-DOF PID purple, fuzzy PI green, self-tuning fuzzy PI blue,
+# P red and PI orange (the colours of the paper's two PIDs in the study).
 _CONTROLLERS: dict[str, ControllerKind] = {
     "p": ControllerKind(
         name="p", title="P", cls=PIDController, gains=(_KP,),
         implied={"ki": 0.0, "kd": 0.0, "n": 100.0, "b": 1.0, "c": 1.0}, options=_PID_OPTIONS,
-        colour="#d62728"),
+        colour="#d62728", start_gains="pid"),
     "pi": ControllerKind(
         name="pi", title="PI", cls=PIDController, gains=(_KP, _KI),
         implied={"kd": 0.0, "n": 100.0, "b": 1.0, "c": 1.0}, options=_PID_OPTIONS,
-        colour="#ff7f0e"),
+        colour="#ff7f0e", start_gains="pid"),
     "pid": ControllerKind(
         name="pid", title="PID, 1-DOF", cls=PIDController, gains=(_KP, _KI, _KD, _N),
         implied={"b": 1.0, "c": 1.0}, options=_PID_OPTIONS, colour="#8c564b"),

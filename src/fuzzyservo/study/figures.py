@@ -31,7 +31,7 @@ from ..plots.study_figures import (
     save,
     step_figure,
 )
-from .paper_study import PlantStudy, StudyConfig
+from .paper_study import DESIGN_COLOURS, PlantStudy, StudyConfig
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure as Drawing
@@ -137,8 +137,8 @@ def figure_files(plant: str, out: Path) -> list[Path]:
 
 def _curve(study: PlantStudy, key: str, *, label: str | None = None) -> Curve:
     r = study.runs[key]
-    lab = label or next(c.label for c in study.cases if c.key == key)
-    return Curve(key, lab, r.t, r.y, r.u, r.alpha, r.r)
+    case = next(c for c in study.cases if c.key == key)
+    return Curve(key, label or case.label, r.t, r.y, r.u, r.alpha, r.r, colour=case.colour)
 
 
 def _mm(x: float) -> str:
@@ -197,7 +197,7 @@ def figure_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:
     ms = cfg.fig8_delay * 1e3
     nominal = _curve(study, "stfpi", label="self-tuning fuzzy PI, no delay")
     delayed = Curve("stfpi_delay", f"self-tuning fuzzy PI, {ms:g} ms delay", d.t, d.y, d.u,
-                    d.alpha, d.r)
+                    d.alpha, d.r, colour=DESIGN_COLOURS["stfpi_delay"])
     diff = float(np.max(np.abs(np.interp(nominal.t, d.t, d.y) - nominal.y)))
     add("fig8", f"Fig. 8, {p} plant: the self-tuning fuzzy PI without and with the {ms:g} ms "
         f"hose delay; below, the difference (with delay minus without), at most "
@@ -206,6 +206,7 @@ def figure_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:
                                                f"without and with hose delay", y0=y0))
 
     labels = {c.key: c.label for c in study.cases}
+    colours = {c.key: c.colour for c in study.cases}
     failed = {k: np.isin(study.delays, np.asarray(study.delay_failures[k], dtype=np.float64))
               for k in study.sweep}
     axis_text = ("Delay axis linear to 10 ms, logarithmic above. A cross in the strip below: "
@@ -221,7 +222,8 @@ def figure_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:
         lambda: delay_sweep_figure(
             study.delays, {k: v["overshoot"] for k, v in study.sweep.items()}, labels,
             f"{sweep_title}: overshoot", ylabel="overshoot [%]", failed=failed,
-            run_length=cfg.duration, show_failed=True, limit=OVERSHOOT_LIMIT_PCT,
+            run_length=cfg.duration, colours=colours, show_failed=True,
+            limit=OVERSHOOT_LIMIT_PCT,
             limit_label=f"overshoot limit of claims C6, C8 ({OVERSHOOT_LIMIT_PCT:g} %)",
             mark=mark, log_y=True))
     never = [labels[k] for k in study.sweep if bool(np.all(failed[k]))]
@@ -231,7 +233,7 @@ def figure_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:
         lambda: delay_sweep_figure(
             study.delays, {k: v["settling_time"] for k, v in study.sweep.items()}, labels,
             f"{sweep_title}: 2 % settling time", ylabel="settling time (2 %) [s]",
-            failed=failed, run_length=cfg.duration, mark=mark))
+            failed=failed, run_length=cfg.duration, colours=colours, mark=mark))
 
     curves = [_curve(study, "stfpi", label="nominal plant")]
     unsettled = []

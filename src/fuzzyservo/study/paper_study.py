@@ -31,7 +31,7 @@ from .._typing import FloatArray
 from ..errors import ParameterError
 from ..paper import PAPER_PIDS
 from ..plant import ServoParams, with_overrides
-from ..registry import controller_kind, plant_kind
+from ..registry import controller_colour, controller_kind, plant_kind
 from ..run import RunSpec, overrides_of
 from ..sim import DEFAULT_DELAY, SimResult
 from .claims import (
@@ -44,6 +44,7 @@ from .claims import (
 
 __all__ = [
     "CONTROLLER_KEYS",
+    "DESIGN_COLOURS",
     "ControllerCase",
     "PlantStudy",
     "StudyConfig",
@@ -70,6 +71,18 @@ TUNED_DESIGNS: dict[str, tuple[str, str]] = {
     "fpi": ("fpi-os0", "fuzzy PI (no overshoot design)"),
     "stfpi": ("stfpi-os0", "self-tuning fuzzy PI (no overshoot design)"),
     "stfpi_10": ("stfpi", "self-tuning fuzzy PI (<= 10 %, like the PIDs)"),
+}
+
+#: Colours of the designs that share their kind with another design of the study (each
+#: other design is drawn in its kind's colour, ``registry.controller_colour``: tuned PID
+#: brown, 2-DOF PID purple, fuzzy PI green, self-tuning fuzzy PI blue): the paper's PIDs red
+#: and orange, the self-tuning fuzzy PI tuned like the PIDs pink, and Fig. 8's delayed run
+#: vermillion beside the blue of the undelayed one.
+DESIGN_COLOURS: dict[str, str] = {
+    "pid_paper_1": "#d62728",
+    "pid_paper_2": "#ff7f0e",
+    "stfpi_10": "#e377c2",
+    "stfpi_delay": "#d55e00",
 }
 
 #: What the tuned PID-family designs were tuned as: study key -> the design's full name.
@@ -189,6 +202,12 @@ class ControllerCase:
     label: str
     kind: str
     gains: dict[str, float]
+
+    @property
+    def colour(self) -> str:
+        """The design's colour in every figure: its own (:data:`DESIGN_COLOURS`), else its
+        kind's (the registry's, as the page draws the kind's runs)."""
+        return DESIGN_COLOURS.get(self.key) or controller_colour(self.kind)
 
 
 def study_cases(tuned: Mapping[str, Design], pid_filter: float = 100.0, *,
