@@ -50,6 +50,22 @@ def test_the_run_is_the_commands(controller: str, plant: str) -> None:
     assert run.t.size == 3001 and run.r[-1] == pytest.approx(0.55, abs=1e-12)
 
 
+@pytest.mark.parametrize("controller, plant, file", [
+    ("p", "small-signal", "linear-pid"), ("pi", "nonlinear", "nonlinear-pid"),
+    ("pid2", "linear", "linear-pid2"), ("stfpi", "small-signal", "linear-stfpi")])
+def test_a_controller_starts_from_the_shipped_gains_the_registry_names(
+        controller: str, plant: str, file: str) -> None:
+    """The page starts each kind from shipped tuned gains; which file is the registry's
+    choice (ControllerKind.start_gains, PlantKind.start_gains), not the page's."""
+    import tomllib
+    from importlib import resources
+
+    folder = Path(str(resources.files("fuzzyservo") / "data" / "gains"))
+    shipped = tomllib.loads((folder / f"{file}.toml").read_text())["gains"]
+    gains = dict(default_gains(controller, plant))
+    assert gains == {g: float(shipped[g]) for g in controller_kind(controller).gain_names}
+
+
 def test_gains_and_values_reach_the_command_exactly() -> None:
     s = PageSettings(controller="pid", gains=(("kp", 0.1 + 0.2), ("ki", 1e-300),
                                               ("kd", 0.0), ("n", float("inf"))))

@@ -25,7 +25,13 @@ import numpy as np
 
 from .._typing import FloatArray
 from ..errors import FuzzyServoError, InputError, UsageError
-from ..registry import DEFAULT_SUBSTEP, OptionSpec, controller_kind, controller_options
+from ..registry import (
+    DEFAULT_SUBSTEP,
+    OptionSpec,
+    controller_kind,
+    controller_options,
+    plant_kind,
+)
 from ..run import RunSpec
 
 __all__ = [
@@ -249,17 +255,21 @@ def error_line(exc: BaseException) -> str:
 
 
 def default_gains(controller: str, plant: str) -> tuple[tuple[str, float], ...]:
-    """The gains the page starts a controller with: the shipped tuned gains of that plant
-    (``data/gains/PLANT-KIND.toml``), for ``p`` and ``pi`` the tuned PID's kp (and ki), and
-    the registry's default for a gain none of them gives."""
+    """The gains the page starts a controller with: the shipped tuned gains
+    (``data/gains/PLANT-KIND.toml``) of the kind and plant the registry names for it
+    (:attr:`~fuzzyservo.registry.ControllerKind.start_gains`,
+    :attr:`~fuzzyservo.registry.PlantKind.start_gains`: ``p`` and ``pi`` take the tuned
+    PID's kp and ki, the small-signal plant the linear plant's), and the registry's default
+    for a gain the file does not give."""
     from importlib import resources
 
     from ..files import read_gains_file
 
     kind = controller_kind(controller)
-    source = {"p": "pid", "pi": "pid"}.get(controller, controller)
+    source = kind.start_gains or kind.name
+    on = plant_kind(plant)
     folder = Path(str(resources.files("fuzzyservo") / "data" / "gains"))
-    path = folder / f"{'nonlinear' if plant == 'nonlinear' else 'linear'}-{source}.toml"
+    path = folder / f"{on.start_gains or on.name}-{source}.toml"
     shipped = read_gains_file(path).gains if path.is_file() else {}
     out = []
     for g in kind.gains:

@@ -285,8 +285,12 @@ class ControllerKind:
         For ``"paper-steps"``: the output gain raised in step 2 until the rise time of step 1
         is recovered.
     colour : str or None
-        Colour of the kind's runs in the browser page (``#rrggbb``); None: one of a fallback
-        palette by the kind's position in the registry.
+        Colour of the kind's runs in the browser page and the study's figures (``#rrggbb``);
+        None: one of a fallback palette by the kind's position in the registry.
+    start_gains : str or None
+        The kind whose shipped tuned gains (``data/gains/PLANT-KIND.toml``) the browser page
+        starts this kind from (``p`` and ``pi``: the tuned PID's, of which they take ``kp``
+        and ``ki``); None: the kind's own.
     """
 
     name: str
@@ -300,6 +304,7 @@ class ControllerKind:
     stage_kind: str | None = None
     rise_gain: str | None = None
     colour: str | None = None
+    start_gains: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "options", tuple(_option(o) for o in self.options))

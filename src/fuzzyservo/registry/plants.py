@@ -68,6 +68,10 @@ class PlantKind:
     ignores : tuple of str
         Parameters (``group.field``) the model leaves out: a run on it is the same whatever
         their values (``fuzzyservo simulate`` notes an override of one).
+    start_gains : str or None
+        The plant whose shipped tuned gains (``data/gains/PLANT-KIND.toml``) the browser page
+        starts a run on this plant from (``small-signal``: the linear plant's, the model it
+        refines); None: the plant's own.
     """
 
     name: str
@@ -76,6 +80,7 @@ class PlantKind:
     force_input: bool = False
     supply_ripple: bool = False
     ignores: tuple[str, ...] = ()
+    start_gains: str | None = None
 
 
 #: What the linearisations leave out: the measurement's rounding (only the nonlinear loop
@@ -104,7 +109,8 @@ _PLANTS: dict[str, PlantKind] = {
                         make=_linear, ignores=_LINEAR_IGNORES),
     "small-signal": PlantKind(name="small-signal",
                               title="small-signal linearisation of the nonlinear model",
-                              make=_small_signal, ignores=_LINEAR_IGNORES),
+                              make=_small_signal, ignores=_LINEAR_IGNORES,
+                              start_gains="linear"),
     "nonlinear": PlantKind(name="nonlinear", title="nonlinear two-chamber model (RK4)",
                            make=_nonlinear, force_input=True, supply_ripple=True),
 }
