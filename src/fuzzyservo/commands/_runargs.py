@@ -16,7 +16,7 @@ from ..analysis.autotune import TunedGains
 from ..errors import InputError, ParameterError
 from ..files import GainsFile, read_gains_file
 from ..registry import controller_kind, controller_names, controller_options, plant_names
-from ..run import load_systems, parse_delay, parse_gains_pairs, systems_record
+from ..run import load_systems, parse_delay, parse_gains_pairs, run_default, systems_record
 from ..sim import DEFAULT_DELAY
 
 __all__ = [
@@ -189,8 +189,7 @@ def options_from_args(args: argparse.Namespace, kind_name: str) -> dict[str, Any
     return options
 
 
-def controller_from_args(args: argparse.Namespace, *, default_ts: float = 1e-3
-                         ) -> ControllerChoice:
+def controller_from_args(args: argparse.Namespace) -> ControllerChoice:
     """The controller kind, gains and sample time selected on the command line.
 
     ``--gains`` is a gains file unless it holds ``NAME=VALUE`` pairs (a pair always has
@@ -215,7 +214,7 @@ def controller_from_args(args: argparse.Namespace, *, default_ts: float = 1e-3
                              f"a file of that controller")
         name = source.controller
         gains = dict(source.gains)
-        ts = args.ts if args.ts is not None else (source.ts or default_ts)
+        ts = args.ts if args.ts is not None else (source.ts or run_default("ts"))
     else:
         if args.controller is None:
             names = ", ".join(controller_names())
@@ -223,7 +222,7 @@ def controller_from_args(args: argparse.Namespace, *, default_ts: float = 1e-3
                                  f"FILE.toml, or --open-loop")
         name = args.controller
         gains = parse_gains_pairs(text or "")
-        ts = default_ts if args.ts is None else args.ts
+        ts = run_default("ts") if args.ts is None else args.ts
     if not (isinstance(ts, float | int) and math.isfinite(ts) and ts > 0.0):
         raise ParameterError(f"--ts must be finite and > 0 s, got {ts!r}")
     checked = controller_kind(name).check_gains(gains)

@@ -18,6 +18,7 @@ from ..export.targets import (
     generate_c,
 )
 from ..registry import DEFAULT_SUBSTEP, build_plant, controller_options
+from ..run import run_default
 from . import HELP
 from ._plantargs import add_plant_arguments, params_from_args
 from ._runargs import (
@@ -42,7 +43,8 @@ def _command(argv: list[str] | None) -> str:
 def _controller_args(parser: argparse.ArgumentParser) -> None:
     add_controller_arguments(parser)
     parser.add_argument("--ts", "--dt", dest="ts", type=float, default=None, metavar="S",
-                        help="sample time [s] (default: the gains file's, else 0.001)")
+                        help="sample time [s] (default: the gains file's, else "
+                             f"{run_default('ts'):g})")
     parser.add_argument("--float", dest="real", action="store_const", const="float",
                         default="double",
                         help="single-precision arithmetic (default double; docs/export.md "
@@ -86,8 +88,9 @@ def add_plant_choice_optional(p: argparse.ArgumentParser) -> None:
         "plant's states, named as the CSV columns of 'fuzzyservo simulate'); communication "
         "steps are whole multiples of --ts")
     add_plant_choice(group, None)
-    group.add_argument("--start", type=float, default=0.5, metavar="FRACTION",
-                       help="start position as a fraction of the stroke (default 0.5)")
+    group.add_argument("--start", type=float, default=run_default("start"), metavar="FRACTION",
+                       help=f"start position as a fraction of the stroke (default "
+                            f"{run_default('start'):g})")
     add_delay_argument(group)
     group.add_argument("--substep", type=float, default=DEFAULT_SUBSTEP, metavar="S",
                        help=f"nonlinear plant: RK4 step bound [s] (default "
@@ -138,7 +141,7 @@ def _run_fmu(args: argparse.Namespace) -> int:
         flag = "--float" if not given else "--" + given[0].replace("_", "-")
         raise ParameterError(f"{flag} applies to a controller FMU; --plant exports the servo "
                              f"alone")
-    ts = 1e-3 if args.ts is None else args.ts
+    ts = run_default("ts") if args.ts is None else args.ts
     if not (0.0 < ts < float("inf")):
         raise ParameterError(f"--ts must be finite and > 0 s, got {ts!r}")
     if not 0.0 < args.start < 1.0:

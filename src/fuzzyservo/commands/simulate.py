@@ -30,7 +30,7 @@ from ..errors import InputError, ParameterError
 from ..plant import ServoParams
 from ..plots.runs import FIGURE_FORMATS, runs_figure, save_figure
 from ..registry import DEFAULT_SUBSTEP, build_plant, controller_kind, controller_options
-from ..run import BuiltRun, RunSpec, check_start, servo_params
+from ..run import BuiltRun, RunSpec, check_start, run_default, servo_params
 from ..sim import simulate_open_loop
 from ..sim.open_loop import MAX_RHS_EVALUATIONS
 from . import HELP
@@ -66,13 +66,14 @@ def register(subparsers: Any) -> None:
     )
     add_plant_choice(parser, None)
     parser.add_argument("--duration", type=float, default=None, metavar="S",
-                        help="simulated time [s] (default: the gains file's, else 2)")
+                        help="simulated time [s] (default: the gains file's, else "
+                             f"{run_default('duration'):g})")
     parser.add_argument("--ts", "--dt", dest="ts", type=float, default=None, metavar="S",
                         help="controller sample time and CSV step [s] (default: the gains "
-                             "file's, else 0.001)")
+                             f"file's, else {run_default('ts'):g})")
     parser.add_argument("--start", type=float, default=None, metavar="FRACTION",
                         help="start position as a fraction of the stroke (default: the "
-                             "gains file's, else 0.5)")
+                             f"gains file's, else {run_default('start'):g})")
     add_delay_argument(parser)
     parser.add_argument("--substep", type=float, default=DEFAULT_SUBSTEP, metavar="S",
                         help="nonlinear plant: RK4 step bound [s] (default "
@@ -90,7 +91,7 @@ def register(subparsers: Any) -> None:
                     help="reference offset from the start position [m]: step:A[:T], "
                          "multistep:T1=A1,..., ramp:SLOPE[:T[:FINAL]], sine:A:F, "
                          "trapezoid:DIST:VMAX:AMAX[:T] (default: the gains file's step, "
-                         "else step:0.1)")
+                         f"else {run_default('reference')})")
     cl.add_argument("--noise-std", type=float, default=0.0, metavar="M",
                     help="measurement noise standard deviation [m] (default 0)")
     cl.add_argument("--seed", type=int, default=0, help="seed of the noise generator")
@@ -175,9 +176,6 @@ def _write(result: Any, out: str | None) -> None:
     result.to_csv(Path(out))  # atomic: a failed write leaves the previous file as it was
 
 
-#: Defaults of the run options when neither the command line nor a gains file sets them.
-DEFAULTS: dict[str, Any] = {"plant": "nonlinear", "start": 0.5, "duration": 2.0,
-                            "reference": "step:0.1"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -208,7 +206,7 @@ def _settings(args: argparse.Namespace, tuned: TunedGains | None, ts: float,
         if recorded is not None:
             from_file.append(shown.format(recorded))
             return recorded
-        return DEFAULTS[name]
+        return run_default(name)  # RunSpec's
 
     plant = pick("plant", args.plant, s and s.plant, "the {} plant")
     start = pick("start", args.start, s and s.start, "start {:g}")
@@ -325,7 +323,7 @@ def run(args: argparse.Namespace) -> int:
         if args.noise_std or args.reference is not None:
             raise InputError("--noise-std and --reference belong to the closed loop; the open "
                              "loop applies --command")
-        ts = 1e-3 if args.ts is None else args.ts
+        ts = run_default("ts") if args.ts is None else args.ts
         run_ = _settings(args, None, ts, "")
         plant = build_plant(run_.plant, run_.params, run_.start * run_.params.cylinder.stroke,
                             substep=args.substep)

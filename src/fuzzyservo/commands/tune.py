@@ -62,7 +62,7 @@ from ..errors import ParameterError
 from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gains_toml
 from ..plant import ServoParams
 from ..registry import controller_names
-from ..run import RunSpec
+from ..run import RunSpec, run_default
 from . import HELP
 from ._plantargs import (
     add_plant_arguments,
@@ -85,9 +85,10 @@ __all__ = ["register", "run"]
 DEFAULT_STOP = StopRule()
 
 #: Defaults of the run options a robust tuning takes from its spec instead (None on the
-#: command line, so that one given with --robust is refused).
+#: command line, so that one given with --robust is refused): a tuning's own plant, step and
+#: run length; a run's sample time and start (RunSpec's).
 RUN_DEFAULTS: dict[str, Any] = {"plant": "linear", "step": 0.1, "duration": 10.0,
-                                "ts": 0.001, "start": 0.5}
+                                "ts": run_default("ts"), "start": run_default("start")}
 
 
 def register(subparsers: Any) -> None:
@@ -139,10 +140,11 @@ def register(subparsers: Any) -> None:
                    help="simulated time per run [s], at least 10 samples and at most "
                         "10 million (default 10)")
     p.add_argument("--ts", type=float, default=None, metavar="S",
-                   help="controller sample period [s] (default 0.001)")
+                   help=f"controller sample period [s] (default {RUN_DEFAULTS['ts']:g})")
     add_delay_argument(p)
     p.add_argument("--start", type=float, default=None, metavar="FRACTION",
-                   help="start position as a fraction of the stroke (default 0.5)")
+                   help=f"start position as a fraction of the stroke (default "
+                        f"{RUN_DEFAULTS['start']:g})")
     p.add_argument("--robust", type=Path, default=None, metavar="SPEC.toml",
                    help=f"robust tuning: tune on every point of this sweep spec (at most "
                         f"{MAX_ROBUST_POINTS}; plant, parameters, step, duration, ts, start "

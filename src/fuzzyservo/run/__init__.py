@@ -19,6 +19,7 @@ from .spec import (
     parse_delay,
     parse_gains_pairs,
     parse_param,
+    run_default,
     servo_params,
     systems_record,
 )
@@ -36,6 +37,7 @@ __all__ = [
     "parse_delay",
     "parse_gains_pairs",
     "parse_param",
+    "run_default",
     "servo_params",
     "systems_record",
 ]

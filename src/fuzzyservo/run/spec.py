@@ -61,6 +61,7 @@ __all__ = [
     "parse_delay",
     "parse_gains_pairs",
     "parse_param",
+    "run_default",
     "servo_params",
     "systems_record",
 ]
@@ -679,19 +680,23 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(f"fuzzyservo simulate: error: {' '.join(message.split())}")
 
 
+def run_default(name: str) -> Any:
+    """The default of the :class:`RunSpec` field ``name``: what a run that does not say takes
+    (``fuzzyservo simulate`` after a gains file's record, and :meth:`RunSpec.from_argv`)."""
+    return RunSpec.__dataclass_fields__[name].default
+
+
 def _parser() -> argparse.ArgumentParser:
     """A reader of the closed-loop run's flags of ``simulate`` (the options as the registry
-    declares them now)."""
+    declares them now; the defaults :class:`RunSpec`'s)."""
     p = _Parser(prog="fuzzyservo simulate", add_help=False, allow_abbrev=False)
-    p.add_argument("--plant", default="nonlinear")
+    p.add_argument("--plant", default=run_default("plant"))
     p.add_argument("--controller", required=True)
     p.add_argument("--gains", default=None)
-    p.add_argument("--reference", default="step:0.1")
-    for name, default in (("--duration", 2.0), ("--ts", 1e-3), ("--start", 0.5),
-                          ("--delay", DEFAULT_DELAY), ("--noise-std", 0.0),
-                          ("--substep", DEFAULT_SUBSTEP)):
-        p.add_argument(name, type=float, default=default)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--reference", default=run_default("reference"))
+    for name in ("duration", "ts", "start", "delay", "noise_std", "substep"):
+        p.add_argument(f"--{name.replace('_', '-')}", type=float, default=run_default(name))
+    p.add_argument("--seed", type=int, default=run_default("seed"))
     for o in controller_options():
         p.add_argument(o.flag, default=None, type=o.type, choices=o.choices or None)
     p.add_argument("--du-system", default=None)
