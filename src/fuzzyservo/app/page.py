@@ -47,6 +47,7 @@ from ..registry import (
 from ..sim import Step, parse_reference
 from .latest import Latest
 from .settings import (
+    PAGE_RUN,
     PHYSICAL,
     WARMED,
     PageRun,
@@ -265,7 +266,7 @@ class ServoPage:
         self._figures: dict[tuple[str, str], Any] = {}
         self._quiet = False
         self.settings = PageSettings(param_set=param_set,
-                                     gains=default_gains("stfpi", "linear"))
+                                     gains=default_gains(PAGE_RUN.controller, PAGE_RUN.plant))
         self._build_inputs()
         self._build_outputs()
         self._build_actions()

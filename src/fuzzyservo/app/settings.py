@@ -231,13 +231,14 @@ WARMED = threading.Event()
 
 
 def warm_up() -> None:
-    """Compile (or load from the cache) the loops the page runs first: the self-tuning fuzzy
-    PI on the linear plant (the page's first run), then on the nonlinear plant; sets
+    """Compile (or load from the cache) the loops the page runs first: its first run's
+    (:data:`PAGE_RUN`: the self-tuning fuzzy PI on the linear plant), then the same
+    controller on the nonlinear plant; sets
     :data:`WARMED` after the first. ``fuzzyservo app`` runs it in a thread while the server
     already serves, and the page says it is warming up until it is done."""
     try:
-        for plant in ("linear", "nonlinear"):
-            run_page(PageSettings(plant=plant, gains=default_gains("stfpi", plant)))
+        for plant in (PAGE_RUN.plant, "nonlinear"):
+            run_page(PageSettings(plant=plant, gains=default_gains(PAGE_RUN.controller, plant)))
             WARMED.set()
     finally:
         WARMED.set()  # a failed warm-up leaves the page's own run to report the error
