@@ -52,8 +52,8 @@ from ..registry import (
     default_systems,
     plant_kind,
 )
-from ..run import BatchRun, RunSpec
-from ..sim import DEFAULT_DELAY, Plant, Step, parse_reference
+from ..run import BatchRun, RunSpec, run_default
+from ..sim import Plant, Step, parse_reference
 from ..sim.closed_loop import plant_limits, time_grid
 from ..sim.references import check_reference_samples
 from ..sim.result import BatchResult
@@ -192,11 +192,11 @@ class TuningSetup:
     plant: str = "linear"
     param_set: str = "paper"
     overrides: tuple[tuple[str, float], ...] = ()
-    start: float = 0.5
+    start: float = run_default("start")
     step: float = 0.1
     duration: float = 10.0
-    ts: float = 0.001
-    delay: float = DEFAULT_DELAY
+    ts: float = run_default("ts")
+    delay: float = run_default("delay")
     objective: str = "itae"
     constraints: TuningConstraints = field(default_factory=TuningConstraints)
     seed: int = 0

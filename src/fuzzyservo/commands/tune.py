@@ -62,7 +62,7 @@ from ..errors import ParameterError
 from ..files import checkpoint_path, load_checkpoint, save_checkpoint, write_gains_toml
 from ..plant import ServoParams
 from ..registry import controller_names
-from ..run import RunSpec, run_default
+from ..run import RunSpec
 from . import HELP
 from ._plantargs import (
     add_plant_arguments,
@@ -85,10 +85,9 @@ __all__ = ["register", "run"]
 DEFAULT_STOP = StopRule()
 
 #: Defaults of the run options a robust tuning takes from its spec instead (None on the
-#: command line, so that one given with --robust is refused): a tuning's own plant, step and
-#: run length; a run's sample time and start (RunSpec's).
-RUN_DEFAULTS: dict[str, Any] = {"plant": "linear", "step": 0.1, "duration": 10.0,
-                                "ts": run_default("ts"), "start": run_default("start")}
+#: command line, so that one given with --robust is refused): :class:`TuningSetup`'s.
+RUN_DEFAULTS: dict[str, Any] = {name: TuningSetup.__dataclass_fields__[name].default
+                                for name in ("plant", "step", "duration", "ts", "start")}
 
 
 def register(subparsers: Any) -> None:
@@ -105,7 +104,7 @@ def register(subparsers: Any) -> None:
     names = controller_names()
     p.add_argument("--controller", required=True, choices=names, metavar="NAME",
                    help=f"controller: {', '.join(names)}")
-    add_plant_choice(p, None, shown="linear")
+    add_plant_choice(p, None, shown=RUN_DEFAULTS["plant"])
     p.add_argument("--objective", default="itae", choices=OBJECTIVES, metavar="NAME",
                    help=f"objective: {', '.join(OBJECTIVES)} (default itae)")
     p.add_argument("--max-overshoot", type=float, default=10.0, metavar="PERCENT",
@@ -135,10 +134,10 @@ def register(subparsers: Any) -> None:
                    help=f"stopping rule: the population's median cost within S (relative) of "
                         f"the best (default {DEFAULT_STOP.spread:g})")
     p.add_argument("--step", type=float, default=None, metavar="M",
-                   help="reference step [m] (default 0.1)")
+                   help=f"reference step [m] (default {RUN_DEFAULTS['step']:g})")
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="simulated time per run [s], at least 10 samples and at most "
-                        "10 million (default 10)")
+                        f"10 million (default {RUN_DEFAULTS['duration']:g})")
     p.add_argument("--ts", type=float, default=None, metavar="S",
                    help=f"controller sample period [s] (default {RUN_DEFAULTS['ts']:g})")
     add_delay_argument(p)
