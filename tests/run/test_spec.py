@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fuzzyservo.cli import build_parser
+from fuzzyservo.cli import build_parser, main
 from fuzzyservo.errors import ParameterError, UsageError
 from fuzzyservo.registry import (
     DEFAULT_SUBSTEP,
@@ -88,7 +88,6 @@ def test_from_argv_refuses_what_it_cannot_describe() -> None:
 
 
 def test_a_run_spec_runs_as_the_command(capsys: pytest.CaptureFixture[str]) -> None:
-    from fuzzyservo.cli import main
 
     spec = RunSpec(controller="pi", gains=(("kp", 20.0), ("ki", 2.0)), plant="linear",
                    duration=0.5, noise_std=1e-6, seed=4, options=(("anti_windup", "none"),))
@@ -192,3 +191,28 @@ def test_the_study_draws_each_design_in_its_kinds_colour() -> None:
     assert len(set(drawn)) == len(drawn)
     assert len({controller_colour(n) for n in controller_names()}) == len(controller_names())
     assert controller_colour("no-such-kind") == "#17becf"  # the fallback's first
+
+
+@pytest.mark.parametrize("controller", ["pid2", "stfpi"])
+def test_export_takes_the_runs_controller(controller: str, tmp_path: Path) -> None:
+    """RunSpec.controller_args is the run's controller as ``export`` reads it: the export's
+    header records that controller, its gains, options and sample time (the page's C and
+    FMU downloads are made with it)."""
+    gains = {"pid2": (("kp", 3.5), ("ki", 0.25), ("kd", 0.125), ("n", 50.0), ("b", 0.5),
+                      ("c", 0.0)),
+             "stfpi": (("ke", 10.0), ("kde", 5000.0), ("kdu", 0.006))}[controller]
+    options = {"pid2": (("anti_windup", "back-calculation"),),
+               "stfpi": (("de_per", "second"), ("filter_time", 0.01))}[controller]
+    spec = RunSpec(controller=controller, gains=gains, options=options, ts=0.002)
+    out = tmp_path / "c"
+    assert main(["export", "c", *spec.controller_args(), "--out", str(out)]) == 0
+    header = (out / f"{controller}.h").read_text()
+    kind = controller_kind(controller)
+    recorded = {g.name: g for g in kind.gains}
+    assert f" * controller:  {controller} (" in header
+    assert " * gains:       " + ", ".join(
+        f"{k} = {v!r} {recorded[k].unit}" for k, v in gains) + "\n" in header
+    for name, value in options:
+        assert f"{name} = {value}" in header
+    assert " * sample time: 0.002 s\n" in header
+

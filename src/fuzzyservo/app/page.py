@@ -787,10 +787,7 @@ class ServoPage:
     def _export_args(self, target: str, out: str) -> list[str]:
         """``fuzzyservo export TARGET`` arguments of the shown controller (the run's
         controller part, as :class:`~fuzzyservo.run.RunSpec` writes it)."""
-        spec = self._shown().run_spec()
-        argv = ["export", target, "--controller", spec.controller, "--gains",
-                spec.gains_text(), "--ts", repr(spec.ts)]
-        return [*argv, *spec.option_args(), *spec.system_args(), "--out", out]
+        return ["export", target, *self._shown().run_spec().controller_args(), "--out", out]
 
     def _export(self, target: str, out: Path, shown: str) -> None:
         """Export the shown controller as ``fuzzyservo export TARGET`` would into ``out``;

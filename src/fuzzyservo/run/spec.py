@@ -161,6 +161,12 @@ class RunSpec:
             out += [f"--no-rule-value={_num(self.no_rule_value)}"]
         return out
 
+    def controller_args(self) -> list[str]:
+        """The run's controller as ``fuzzyservo export`` takes it: ``--controller``,
+        ``--gains``, ``--ts``, the options and the fuzzy systems."""
+        return ["--controller", self.controller, "--gains", self.gains_text(), "--ts",
+                _num(self.ts), *self.option_args(), *self.system_args()]
+
     def parameter_args(self, *, explicit: bool = False) -> list[str]:
         """``--set`` (unless the default set, or ``explicit``) and ``--param``: the servo's
         parameters (``simulate`` and ``tune``)."""
