@@ -99,6 +99,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
+from functools import partial
 from typing import cast
 
 from ..errors import FormatError, ParameterError
@@ -121,7 +122,7 @@ from ..fuzzy.system import (
     Term,
     Variable,
 )
-from ._text import Source, fmt_float, parse_float
+from ._text import Source, clause_text, fmt_float, fuzzylite_rule, parse_float
 
 __all__ = ["MAX_DEPTH", "MAX_NUMBERS", "MAX_TERMS", "MAX_VARIABLES", "WRITE_RESOLUTION", "dump",
            "parse"]
@@ -851,24 +852,19 @@ def _term_line(kind: str, var: Variable, t: Term) -> str:
     return f"  term: {_fmt_name('term', t.name)} {cls} {' '.join(values)}"
 
 
-def _expr_text(system: FuzzySystem, e: Expr, top: bool, k: int) -> str:
+def _negation(system: FuzzySystem, k: int, e: Not) -> str:
+    """NOT in rule k: FLL's 'not' is a hedge of one clause, so NOT (NOT ...) of a clause is
+    that clause with a 'not' per NOT, and a NOT of a compound expression is refused."""
     nots = 0
-    inner = e
+    inner: Expr = e
     while isinstance(inner, Not):
         nots += 1
         inner = inner.operand
-    if isinstance(inner, Is):
-        v = system.inputs[inner.variable]
-        hedges = "not " * (nots + (1 if inner.negated else 0))
-        return f"{v.name} is {hedges}{v.terms[inner.term].name}"
-    if nots:
+    if not isinstance(inner, Is):
         raise ParameterError(f"FLL cannot hold rule {k}'s 'not' of a compound expression "
                              f"(FLL's 'not' is a hedge of one clause): "
                              f"{system.rule_text(system.rules[k - 1])}")
-    assert isinstance(inner, And | Or)
-    word = " and " if isinstance(inner, And) else " or "
-    body = word.join(_expr_text(system, op, False, k) for op in inner.operands)
-    return body if top else f"({body})"
+    return clause_text(system, inner, nots)
 
 
 def dump(system: FuzzySystem) -> str:
@@ -920,11 +916,5 @@ def dump(system: FuzzySystem) -> str:
             f"  disjunction: {_OR_CLASS[system.or_op]}",
             f"  implication: {impl}", "  activation: General"]
     for k, r in enumerate(system.rules, start=1):
-        cons = " and ".join(
-            f"{system.outputs[c.variable].name} is "
-            f"{system.outputs[c.variable].terms[c.term].name}" for c in r.consequents)
-        text = f"  rule: if {_expr_text(system, r.antecedent, True, k)} then {cons}"
-        if r.weight != 1.0:
-            text += f" with {fmt_float(r.weight)}"
-        out.append(text)
+        out.append(f"  rule: {fuzzylite_rule(system, r, partial(_negation, system, k))}")
     return "\n".join(out) + "\n"
