@@ -500,6 +500,22 @@ class _RuleCtx:
             return self.src.error(self.end_off(), f"rule: expected {what}, found end of rule")
         return self.src.error(tok.off, f"rule: expected {what}, found {tok.text!r}")
 
+    def expect_is(self, var: Variable) -> None:
+        """Step over the 'is' after variable ``var``."""
+        tok = self.peek()
+        if tok is None or tok.text != "is":
+            raise self.expect_what(f"'is' after {var.name!r}")
+        self.pos += 1
+
+    def read_term(self, index: dict[str, int], role: str, var: Variable) -> int:
+        """Read a term of ``var`` (an input or output, ``role``): its index in ``index``."""
+        t = self.peek()
+        if t is None or t.text not in index:
+            raise self.expect_what(f"a term of {role} {var.name!r} "
+                                   f"({', '.join(index) or 'none'})")
+        self.pos += 1
+        return index[t.text]
+
 
 def _parse_or(ctx: _RuleCtx, depth: int) -> Expr:
     ops = [_parse_and(ctx, depth)]
@@ -549,10 +565,7 @@ def _proposition(ctx: _RuleCtx, depth: int) -> Expr:
     v = ctx.inputs[tok.text]
     var = ctx.input_vars[v]
     ctx.pos += 1
-    is_tok = ctx.peek()
-    if is_tok is None or is_tok.text != "is":
-        raise ctx.expect_what(f"'is' after {var.name!r}")
-    ctx.pos += 1
+    ctx.expect_is(var)
     nots = 0
     while (h := ctx.peek()) is not None and h.text in _HEDGES:
         if h.text != "not":
@@ -561,12 +574,7 @@ def _proposition(ctx: _RuleCtx, depth: int) -> Expr:
         if depth + nots > MAX_DEPTH:
             raise src.error(h.off, f"rule: more than {MAX_DEPTH} nested 'not' and parentheses")
         ctx.pos += 1
-    t = ctx.peek()
-    index = ctx.in_terms[v]
-    if t is None or t.text not in index:
-        raise ctx.expect_what(f"a term of input {var.name!r} ({', '.join(index) or 'none'})")
-    ctx.pos += 1
-    expr: Expr = Is(v, index[t.text], negated=nots > 0)
+    expr: Expr = Is(v, ctx.read_term(ctx.in_terms[v], "input", var), negated=nots > 0)
     for _ in range(nots - 1):
         expr = Not(expr)
     return expr
@@ -587,18 +595,11 @@ def _consequents(ctx: _RuleCtx) -> tuple[Consequent, ...]:
         o = ctx.outputs[tok.text]
         var = ctx.output_vars[o]
         ctx.pos += 1
-        is_tok = ctx.peek()
-        if is_tok is None or is_tok.text != "is":
-            raise ctx.expect_what(f"'is' after {var.name!r}")
-        ctx.pos += 1
+        ctx.expect_is(var)
         t = ctx.peek()
         if t is not None and t.text in _HEDGES:
             raise src.error(t.off, f"unsupported: hedge {t.text!r} in a consequent")
-        index = ctx.out_terms[o]
-        if t is None or t.text not in index:
-            raise ctx.expect_what(f"a term of output {var.name!r} ({', '.join(index) or 'none'})")
-        ctx.pos += 1
-        out.append(Consequent(o, index[t.text]))
+        out.append(Consequent(o, ctx.read_term(ctx.out_terms[o], "output", var)))
         nxt = ctx.peek()
         if nxt is None or nxt.text != "and":
             return tuple(out)
