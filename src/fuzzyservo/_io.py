@@ -45,7 +45,7 @@ import stat
 import tempfile
 import threading
 import zipfile
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any, BinaryIO, Literal, overload
 
@@ -799,14 +799,7 @@ def parse_toml(text: str, what: str) -> dict[str, Any]:
     """
     import tomllib
 
-    _check_brackets(text, what, toml=True)
-    try:
-        doc = tomllib.loads(text)
-    except ValueError as exc:  # TOMLDecodeError, or an integer of > 4300 digits
-        why = " ".join(str(exc).split())[:200]
-        raise InputError(f"{what} is not valid TOML: {why}") from None
-    except RecursionError:  # not reached with the bound above; never a traceback
-        raise InputError(f"{what} nests too deep to be read") from None
+    doc = _parse(tomllib.loads, text, what, "TOML")
     _check_depth(doc, what)
     return doc
 
@@ -820,12 +813,19 @@ def parse_json(text: str, what: str) -> Any:
     InputError
         The text is not JSON (the parser's reason, on one line), or nests too deep.
     """
-    _check_brackets(text, what, toml=False)
+    return _parse(json.loads, text, what, "JSON")
+
+
+def _parse(loads: Callable[[str], Any], text: str, what: str, language: Literal["TOML", "JSON"]
+           ) -> Any:
+    """``loads(text)`` after the nesting check of ``language`` ("TOML" or "JSON"), its
+    errors as one-line :class:`InputError` naming ``what``."""
+    _check_brackets(text, what, toml=language == "TOML")
     try:
-        return json.loads(text)
-    except ValueError as exc:  # JSONDecodeError, or an integer of > 4300 digits
+        return loads(text)
+    except ValueError as exc:  # TOMLDecodeError, JSONDecodeError, an integer of > 4300 digits
         why = " ".join(str(exc).split())[:200]
-        raise InputError(f"{what} is not valid JSON: {why}") from None
+        raise InputError(f"{what} is not valid {language}: {why}") from None
     except RecursionError:  # not reached with the bound above; never a traceback
         raise InputError(f"{what} nests too deep to be read") from None
 

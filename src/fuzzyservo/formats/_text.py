@@ -1,12 +1,15 @@
-"""Shared helpers of the file readers: locations and one-line errors."""
+"""Shared helpers of the file readers and writers: locations and one-line errors, numbers,
+and the rule text FLL and FCL share."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from ..errors import FormatError
+from ..fuzzy.system import And, Expr, FuzzySystem, Is, Not, Rule
 
-__all__ = ["MAX_POINTS", "Source", "fmt_float", "parse_float"]
+__all__ = ["MAX_POINTS", "Source", "clause_text", "fmt_float", "fuzzylite_rule", "parse_float"]
 
 #: Most points of one piecewise-linear term (an FCL point list, a Discrete term, a .fis
 #: ``discretemf``): fuzzylite's FLL reader's bound of 1024 numbers a term (fll.MAX_NUMBERS), so
@@ -85,3 +88,37 @@ def fmt_float(x: float) -> str:
     if x == int(x) and abs(x) < 1e15:
         return str(int(x)) if x != 0 or math.copysign(1.0, x) > 0 else "-0.0"
     return repr(x)
+
+
+def clause_text(system: FuzzySystem, e: Is, nots: int = 0) -> str:
+    """A clause as fuzzylite writes it: ``input is term``, with ``not`` before the term once
+    for a negated clause and once for each of ``nots`` enclosing NOTs."""
+    v = system.inputs[e.variable]
+    return f"{v.name} is {'not ' * (nots + e.negated)}{v.terms[e.term].name}"
+
+
+def fuzzylite_rule(system: FuzzySystem, rule: Rule, negation: Callable[[Not], str]) -> str:
+    """A rule in the grammar FLL's ``rule:`` and FCL's ``RULE k :`` share (fuzzylite reads
+    both alike): ``if A then C``, then ``with w`` when the weight is not 1.
+
+    A joins the operands of AND and OR by ``and`` / ``or``, an operand that is itself AND or
+    OR in parentheses, clauses by :func:`clause_text`; ``negation`` writes a NOT (or raises
+    ParameterError naming what the format cannot hold), each format by its own rule. C is
+    ``output is term`` per consequent, joined by ``and``.
+    """
+
+    def expr(e: Expr, top: bool) -> str:
+        if isinstance(e, Is):
+            return clause_text(system, e)
+        if isinstance(e, Not):
+            return negation(e)
+        word = " and " if isinstance(e, And) else " or "
+        body = word.join(expr(op, False) for op in e.operands)
+        return body if top else f"({body})"
+
+    ante = expr(rule.antecedent, True)
+    cons = " and ".join(
+        f"{system.outputs[c.variable].name} is "
+        f"{system.outputs[c.variable].terms[c.term].name}" for c in rule.consequents)
+    weight = "" if rule.weight == 1.0 else f" with {fmt_float(rule.weight)}"
+    return f"if {ante} then {cons}{weight}"

@@ -104,6 +104,8 @@ import re
 from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from functools import partial
+from typing import NoReturn
 
 from ..errors import FormatError, ParameterError
 from ..fuzzy.shapes import PIECEWISE_LINEAR, SHAPE_TABLE
@@ -119,7 +121,7 @@ from ..fuzzy.system import (
     Term,
     Variable,
 )
-from ._text import MAX_POINTS, Source, fmt_float
+from ._text import MAX_POINTS, Source, fmt_float, fuzzylite_rule
 
 __all__ = ["dump", "parse"]
 
@@ -1212,18 +1214,11 @@ def _write_term(system: FuzzySystem, v: Variable, t: Term, role: str) -> str:
     return " ".join([_CLASS_OF[t.shape], *(fmt_float(x) for x in values)])
 
 
-def _write_expr(system: FuzzySystem, e: Expr, k: int, top: bool) -> str:
-    if isinstance(e, Is):
-        v = system.inputs[e.variable]
-        neg = "not " if e.negated else ""
-        return f"{v.name} is {neg}{v.terms[e.term].name}"
-    if isinstance(e, Not):
-        raise ParameterError(
-            f"FCL (as fuzzylite reads it) cannot hold NOT applied to an expression (rule {k}: "
-            f"{system.rule_text(system.rules[k - 1])}); use 'variable is not term' clauses")
-    word = " and " if isinstance(e, And) else " or "
-    body = word.join(_write_expr(system, op, k, False) for op in e.operands)
-    return body if top else f"({body})"
+def _negation(system: FuzzySystem, k: int, e: Not) -> NoReturn:
+    """NOT in rule k: refused (a clause's own ``negated`` is written as ``is not``)."""
+    raise ParameterError(
+        f"FCL (as fuzzylite reads it) cannot hold NOT applied to an expression (rule {k}: "
+        f"{system.rule_text(system.rules[k - 1])}); use 'variable is not term' clauses")
 
 
 def dump(system: FuzzySystem) -> str:
@@ -1307,11 +1302,6 @@ def dump(system: FuzzySystem) -> str:
     lines.append(f"  OR : {_WRITE_OR[system.or_op]};")
     lines.append(f"  ACT : {_WRITE_ACT[system.implication]};")
     for k, r in enumerate(system.rules, start=1):
-        ante = _write_expr(system, r.antecedent, k, True)
-        cons = " and ".join(
-            f"{system.outputs[c.variable].name} is "
-            f"{system.outputs[c.variable].terms[c.term].name}" for c in r.consequents)
-        weight = "" if r.weight == 1.0 else f" with {fmt_float(r.weight)}"
-        lines.append(f"  RULE {k} : if {ante} then {cons}{weight};")
+        lines.append(f"  RULE {k} : {fuzzylite_rule(system, r, partial(_negation, system, k))};")
     lines += ["END_RULEBLOCK", "", "END_FUNCTION_BLOCK", ""]
     return "\n".join(lines)

@@ -99,6 +99,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
+from functools import partial
 from typing import cast
 
 from ..errors import FormatError, ParameterError
@@ -121,7 +122,7 @@ from ..fuzzy.system import (
     Term,
     Variable,
 )
-from ._text import Source, fmt_float, parse_float
+from ._text import Source, clause_text, fmt_float, fuzzylite_rule, parse_float
 
 __all__ = ["MAX_DEPTH", "MAX_NUMBERS", "MAX_TERMS", "MAX_VARIABLES", "WRITE_RESOLUTION", "dump",
            "parse"]
@@ -499,6 +500,22 @@ class _RuleCtx:
             return self.src.error(self.end_off(), f"rule: expected {what}, found end of rule")
         return self.src.error(tok.off, f"rule: expected {what}, found {tok.text!r}")
 
+    def expect_is(self, var: Variable) -> None:
+        """Step over the 'is' after variable ``var``."""
+        tok = self.peek()
+        if tok is None or tok.text != "is":
+            raise self.expect_what(f"'is' after {var.name!r}")
+        self.pos += 1
+
+    def read_term(self, index: dict[str, int], role: str, var: Variable) -> int:
+        """Read a term of ``var`` (an input or output, ``role``): its index in ``index``."""
+        t = self.peek()
+        if t is None or t.text not in index:
+            raise self.expect_what(f"a term of {role} {var.name!r} "
+                                   f"({', '.join(index) or 'none'})")
+        self.pos += 1
+        return index[t.text]
+
 
 def _parse_or(ctx: _RuleCtx, depth: int) -> Expr:
     ops = [_parse_and(ctx, depth)]
@@ -548,10 +565,7 @@ def _proposition(ctx: _RuleCtx, depth: int) -> Expr:
     v = ctx.inputs[tok.text]
     var = ctx.input_vars[v]
     ctx.pos += 1
-    is_tok = ctx.peek()
-    if is_tok is None or is_tok.text != "is":
-        raise ctx.expect_what(f"'is' after {var.name!r}")
-    ctx.pos += 1
+    ctx.expect_is(var)
     nots = 0
     while (h := ctx.peek()) is not None and h.text in _HEDGES:
         if h.text != "not":
@@ -560,12 +574,7 @@ def _proposition(ctx: _RuleCtx, depth: int) -> Expr:
         if depth + nots > MAX_DEPTH:
             raise src.error(h.off, f"rule: more than {MAX_DEPTH} nested 'not' and parentheses")
         ctx.pos += 1
-    t = ctx.peek()
-    index = ctx.in_terms[v]
-    if t is None or t.text not in index:
-        raise ctx.expect_what(f"a term of input {var.name!r} ({', '.join(index) or 'none'})")
-    ctx.pos += 1
-    expr: Expr = Is(v, index[t.text], negated=nots > 0)
+    expr: Expr = Is(v, ctx.read_term(ctx.in_terms[v], "input", var), negated=nots > 0)
     for _ in range(nots - 1):
         expr = Not(expr)
     return expr
@@ -586,18 +595,11 @@ def _consequents(ctx: _RuleCtx) -> tuple[Consequent, ...]:
         o = ctx.outputs[tok.text]
         var = ctx.output_vars[o]
         ctx.pos += 1
-        is_tok = ctx.peek()
-        if is_tok is None or is_tok.text != "is":
-            raise ctx.expect_what(f"'is' after {var.name!r}")
-        ctx.pos += 1
+        ctx.expect_is(var)
         t = ctx.peek()
         if t is not None and t.text in _HEDGES:
             raise src.error(t.off, f"unsupported: hedge {t.text!r} in a consequent")
-        index = ctx.out_terms[o]
-        if t is None or t.text not in index:
-            raise ctx.expect_what(f"a term of output {var.name!r} ({', '.join(index) or 'none'})")
-        ctx.pos += 1
-        out.append(Consequent(o, index[t.text]))
+        out.append(Consequent(o, ctx.read_term(ctx.out_terms[o], "output", var)))
         nxt = ctx.peek()
         if nxt is None or nxt.text != "and":
             return tuple(out)
@@ -851,24 +853,19 @@ def _term_line(kind: str, var: Variable, t: Term) -> str:
     return f"  term: {_fmt_name('term', t.name)} {cls} {' '.join(values)}"
 
 
-def _expr_text(system: FuzzySystem, e: Expr, top: bool, k: int) -> str:
+def _negation(system: FuzzySystem, k: int, e: Not) -> str:
+    """NOT in rule k: FLL's 'not' is a hedge of one clause, so NOT (NOT ...) of a clause is
+    that clause with a 'not' per NOT, and a NOT of a compound expression is refused."""
     nots = 0
-    inner = e
+    inner: Expr = e
     while isinstance(inner, Not):
         nots += 1
         inner = inner.operand
-    if isinstance(inner, Is):
-        v = system.inputs[inner.variable]
-        hedges = "not " * (nots + (1 if inner.negated else 0))
-        return f"{v.name} is {hedges}{v.terms[inner.term].name}"
-    if nots:
+    if not isinstance(inner, Is):
         raise ParameterError(f"FLL cannot hold rule {k}'s 'not' of a compound expression "
                              f"(FLL's 'not' is a hedge of one clause): "
                              f"{system.rule_text(system.rules[k - 1])}")
-    assert isinstance(inner, And | Or)
-    word = " and " if isinstance(inner, And) else " or "
-    body = word.join(_expr_text(system, op, False, k) for op in inner.operands)
-    return body if top else f"({body})"
+    return clause_text(system, inner, nots)
 
 
 def dump(system: FuzzySystem) -> str:
@@ -920,11 +917,5 @@ def dump(system: FuzzySystem) -> str:
             f"  disjunction: {_OR_CLASS[system.or_op]}",
             f"  implication: {impl}", "  activation: General"]
     for k, r in enumerate(system.rules, start=1):
-        cons = " and ".join(
-            f"{system.outputs[c.variable].name} is "
-            f"{system.outputs[c.variable].terms[c.term].name}" for c in r.consequents)
-        text = f"  rule: if {_expr_text(system, r.antecedent, True, k)} then {cons}"
-        if r.weight != 1.0:
-            text += f" with {fmt_float(r.weight)}"
-        out.append(text)
+        out.append(f"  rule: {fuzzylite_rule(system, r, partial(_negation, system, k))}")
     return "\n".join(out) + "\n"

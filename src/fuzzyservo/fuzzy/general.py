@@ -45,7 +45,7 @@ from .._typing import ArrayLike, FloatArray, IntArray
 from ..errors import ParameterError
 from .kernels import insort
 from .partition import eval_partition, partition_tables, scratch_sizes
-from .shapes import PIECEWISE_LINEAR, SHAPE_TABLE
+from .shapes import SHAPE_TABLE, shape
 from .system import And, Expr, FuzzySystem, Is, Not, Or
 
 __all__ = [
@@ -58,9 +58,12 @@ __all__ = [
 ]
 
 SHAPE_CODE: dict[str, int] = {s.name: s.code for s in SHAPE_TABLE}
-_TRI, _TRAP, _RECT, _RAMP, _DISC, _SING, _GAUSS, _GAUSS2, _BELL, _SIG, _DSIG, _PSIG, _S, _Z, \
-    _PI, _CONST, _LIN = range(17)
-_PL_CODES = (_TRI, _TRAP, _RECT, _RAMP, _DISC)
+# the codes the compiled functions switch on (each shape's own formula), read from the table
+(_TRI, _TRAP, _RECT, _RAMP, _DISC, _SING, _GAUSS, _GAUSS2, _BELL, _SIG, _DSIG, _PSIG, _S, _Z,
+ _PI, _CONST, _LIN) = (SHAPE_CODE[name] for name in (
+    "triangle", "trapezoid", "rectangle", "ramp", "discrete", "singleton", "gaussian",
+    "gaussian2", "bell", "sigmoid", "dsigmoid", "psigmoid", "s", "z", "pi", "constant",
+    "linear"))
 
 # header of ``ints``
 (H_MAGIC, H_NIN, H_NOUT, H_NTERMS, H_NRULES, H_KIND, H_AND, H_OR, H_IMPL, H_AGG, H_DEFUZZ,
@@ -322,11 +325,10 @@ def _flat(system: FuzzySystem) -> int:
 def _output_mode(system: FuzzySystem, k: int) -> int:
     if system.kind == "sugeno":
         return _M_SUGENO
-    shapes = {t.shape for t in system.outputs[k].terms}
-    if shapes == {"singleton"}:
+    families = {shape(t.shape).family for t in system.outputs[k].terms}
+    if families == {"singleton"}:
         return _M_SING
-    if shapes <= PIECEWISE_LINEAR and \
-            system.aggregation != "probor":
+    if families <= {"piecewise linear"} and system.aggregation != "probor":
         return _M_PL
     return _M_SMOOTH
 

@@ -394,7 +394,7 @@ class FuzzySystem:
                 f"{self.defuzzifier!r}")
         for v in self.inputs:
             for t in v.terms:
-                if t.shape in _SUGENO_TERMS or t.shape == "singleton":
+                if shape(t.shape).family in ("singleton", "sugeno"):
                     raise ParameterError(
                         f"input {v.name!r} term {t.name!r}: {t.shape} is an output shape")
         for v in self.outputs:
@@ -425,7 +425,7 @@ class FuzzySystem:
                     f"output {v.name!r} term {t.name!r}: linear needs {len(self.inputs) + 1} "
                     f"coefficients (one per input, then the constant), got {len(t.params)}")
         if self.kind == "mamdani":
-            single = [t.shape == "singleton" for t in v.terms]
+            single = [shape(t.shape).family == "singleton" for t in v.terms]
             if any(single) and not all(single):
                 raise ParameterError(
                     f"output {v.name!r} mixes singleton terms with terms that have area; "
