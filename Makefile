@@ -68,8 +68,9 @@ lint: $(STAMP)
 precompile: $(STAMP)
 	$(BIN)/fuzzyservo precompile
 
+# the 15 slowest tests are listed at the end (the suite is to stay under 10 minutes in CI)
 test: lint oracles browser precompile
-	$(BIN)/python -m pytest -n 2 -q
+	$(BIN)/python -m pytest -n 2 -q --durations=15
 
 # the same without the tests marked slow (brute-force accuracy, the README's study and tuning
 # runs): a quick check while editing; CI and `make test` run everything
