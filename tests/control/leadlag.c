@@ -1,7 +1,10 @@
 /* C port of the test-only lead-lag law (tests/control/leadlag.py), line by line. */
 
-static fs_real fs_law_step(const fs_real *p, fs_real *s, fs_real r, fs_real y)
+static fs_real fs_law_step(const fs_real *p, fs_real *s, fs_real r, fs_real y,
+                           fs_real rd, fs_real rdd)
 {
+    (void)rd; /* no feed-forward */
+    (void)rdd;
     fs_real e = r - y;
     fs_real v = p[FS_P_B0] * e + p[FS_P_B1] * s[FS_S_E_PREV] - p[FS_P_A1] * s[FS_S_V_PREV];
     fs_real u = s[FS_S_U_OFF] + v;

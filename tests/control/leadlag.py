@@ -35,7 +35,8 @@ S = indices("LeadLagState", STATE)
 
 
 @kernel(inline=True, error_model="numpy")
-def leadlag_step(p: Any, s: Any, r: float, y: float, aux: Any) -> float:
+def leadlag_step(p: Any, s: Any, r: float, y: float, aux: Any, rd: float,
+                 rdd: float) -> float:
     e = r - y
     v = p[P.b0] * e + p[P.b1] * s[S.e_prev] - p[P.a1] * s[S.v_prev]
     u = min(max(s[S.u_off] + v, p[P.u_min]), p[P.u_max])

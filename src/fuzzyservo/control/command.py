@@ -24,7 +24,8 @@ __all__ = ["COMMAND_LAW", "CommandSchedule", "CommandState"]
 
 
 @kernel(inline=True)
-def _pass_through(p: Any, s: Any, r: float, y: float, aux: Any) -> float:
+def _pass_through(p: Any, s: Any, r: float, y: float, aux: Any, rd: float,
+                  rdd: float) -> float:
     """The command is the schedule sample given as the reference."""
     return r
 

@@ -7,8 +7,11 @@
  * fs_sys(x1, x2, &du, &alpha), which evaluates both as the Python does. */
 
 /* One sample on packed parameters p and state s (updated in place): fuzzy_pi_step. */
-static fs_real fs_law_step(const fs_real *p, fs_real *s, fs_real r, fs_real y)
+static fs_real fs_law_step(const fs_real *p, fs_real *s, fs_real r, fs_real y,
+                           fs_real rd, fs_real rdd)
 {
+    (void)rd; /* no feed-forward */
+    (void)rdd;
     fs_real yf, e, e_prev, de, en, den, dun, alpha, u;
     if (s[FS_S_STARTED] == 0) {
         yf = y;

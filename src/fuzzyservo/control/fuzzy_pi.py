@@ -118,7 +118,8 @@ SYSTEMS: Any = None
 
 
 @template(inline=True, error_model="numpy")
-def fuzzy_pi_step(p: Any, s: Any, r: float, y: float, aux: Any) -> float:
+def fuzzy_pi_step(p: Any, s: Any, r: float, y: float, aux: Any, rd: float,
+                  rdd: float) -> float:
     """One fuzzy PI sample on packed ``p`` and state ``s`` (data pointers or arrays; ``s``
     updated in place); returns u. ``aux`` holds the Δu and α systems; with ``self_tuning``
     the output gain is scaled by α (eq. 11), otherwise α = 1. Written once, compiled for the

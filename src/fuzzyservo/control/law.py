@@ -5,10 +5,13 @@ A law is what the compiled loops run each sample. It is declared by one :class:`
 module that implements it (``control/pid.py``, ``control/fuzzy_pi.py``, or a user's own
 module), and everything that needs its layout reads that declaration:
 
-- the compiled step ``step(p, s, r, y, aux) -> u`` works on the packed parameter vector ``p``
-  and state ``s`` (data pointers, indexed by name through :meth:`Law.p` and :meth:`Law.s`:
-  ``p[P.kp]``) and updates ``s`` in place; ``aux`` is what ``prepare(tables)`` made of the
-  controller's tables (its fuzzy systems) once per run;
+- the compiled step ``step(p, s, r, y, aux, rd, rdd) -> u`` works on the packed parameter
+  vector ``p`` and state ``s`` (data pointers, indexed by name through :meth:`Law.p` and
+  :meth:`Law.s`: ``p[P.kp]``) and updates ``s`` in place; ``r`` [m] is the reference, ``y``
+  [m] the measurement, ``rd`` [m/s] and ``rdd`` [m/s²] the reference's velocity and
+  acceleration at the same instant (its feed-forward signals, exact for the package's
+  references; a law without feed-forward ignores them); ``aux`` is what ``prepare(tables)``
+  made of the controller's tables (its fuzzy systems) once per run;
 - ``pack(gains, constants)`` makes packed rows from rows of the law's gains (the batch gain
   columns, :attr:`Law.gains`) and the controller's constants (:attr:`Law.constants`, e.g. the
   sample time and the limits); ``rest(packed, y0, u0)`` the states at rest;
@@ -17,8 +20,8 @@ module), and everything that needs its layout reads that declaration:
   compiles only its own loops, and LLVM inlines it into them;
 - the C export writes the layout as named constants (``FS_P_KP``, ``FS_S_INTEGRAL``,
   ``FS_G_KP``, ``FS_K_TS``) before the law's C port (``c_source``, a file beside the law's
-  module defining ``fs_law_step``, ``fs_law_rest`` and ``fs_law_pack``), which indexes by
-  those names only.
+  module defining ``fs_law_step(p, s, r, y, rd, rdd)``, ``fs_law_rest`` and
+  ``fs_law_pack``), which indexes by those names only.
 
 :class:`LawController` gives a controller class the packing and per-step methods every front
 end uses (``pack``, ``pack_gains``, ``rest_states``, ``pack_state``, ``step``...) from its
@@ -105,8 +108,9 @@ class Law:
     constants : tuple of Field
         The other numbers ``pack`` takes (sample time, limits, options as codes), in order.
     step : compiled function
-        ``step(p, s, r, y, aux) -> u`` (a :func:`fuzzyservo._jit.kernel` with
-        ``inline=True``): one sample, ``s`` updated in place.
+        ``step(p, s, r, y, aux, rd, rdd) -> u`` (a :func:`fuzzyservo._jit.kernel` with
+        ``inline=True``): one sample, ``s`` updated in place; ``rd``, ``rdd`` the
+        reference's velocity [m/s] and acceleration [m/s²].
     prepare : compiled function
         ``prepare(tables) -> aux``: what the step needs of the controller's tables, made once
         per run (the tables must outlive it).
@@ -120,6 +124,9 @@ class Law:
     c_source : Path or None
         The law's C port (defines ``fs_law_step``, ``fs_law_rest``, ``fs_law_pack``); None: no
         C export.
+    feedforward : bool
+        The law uses the reference's velocity and acceleration (the C export then offers
+        ``<name>_step_ff`` and the controller FMU their inputs; front ends say so).
     systems : tuple of str
         Roles of the fuzzy systems the controller's ``systems()`` may give (``du``,
         ``alpha``): the C export writes each as ``fs_sys_<role>(x1, x2)`` and defines
@@ -141,6 +148,7 @@ class Law:
     rest: Callable[[FloatArray, float, float], FloatArray]
     trace: str | None = None
     c_source: Path | None = None
+    feedforward: bool = False
     systems: tuple[str, ...] = ()
     source: str = ""
     _kernels: dict[str, Any] = field(default_factory=dict, repr=False)
@@ -215,8 +223,8 @@ class Law:
 
     @property
     def step_arrays(self) -> Any:
-        """The per-step API's compiled call: ``step_arrays(p, s, r, y, tables) -> u`` on the
-        controller's arrays (``s`` updated in place)."""
+        """The per-step API's compiled call: ``step_arrays(p, s, r, y, tables, rd, rdd) -> u``
+        on the controller's arrays (``s`` updated in place)."""
         return self.kernels("per-step", [_step_arrays])._step_arrays
 
     def gain_rows(self, gains: FloatArray) -> FloatArray:
@@ -266,9 +274,10 @@ LAW_PREPARE: Any = None
 
 
 @template(error_model="numpy")
-def _step_arrays(p: FloatArray, s: FloatArray, r: float, y: float, tables: Any) -> float:
+def _step_arrays(p: FloatArray, s: FloatArray, r: float, y: float, tables: Any, rd: float,
+                 rdd: float) -> float:
     """One sample of the law on the controller's arrays (``s`` updated in place)."""
-    return LAW_STEP(data_pointer(p), data_pointer(s), r, y, LAW_PREPARE(tables))
+    return LAW_STEP(data_pointer(p), data_pointer(s), r, y, LAW_PREPARE(tables), rd, rdd)
 
 
 # --- what a controller class gets from its law ----------------------------------------------
@@ -340,9 +349,14 @@ class LawController:
             kw[n] = (v != 0.0) if types_.get(n) in (bool, "bool") else v
         return self.state_class(**kw)
 
-    def step(self, state: Any, reference: float, measurement: float) -> tuple[float, Any]:
-        """One sample: command u [-] from reference and measurement [m], and the new state."""
+    def step(self, state: Any, reference: float, measurement: float, *,
+             reference_rate: float = 0.0, reference_acceleration: float = 0.0
+             ) -> tuple[float, Any]:
+        """One sample: command u [-] from reference and measurement [m] (and, for a law with
+        feed-forward, the reference's velocity [m/s] and acceleration [m/s²]), and the new
+        state."""
         s = self.pack_state(state)
         u = self.law.step_arrays(self.pack(), s, float(reference), float(measurement),
-                                 self.tables())
+                                 self.tables(), float(reference_rate),
+                                 float(reference_acceleration))
         return float(u), self.unpack_state(s)

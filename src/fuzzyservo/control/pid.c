@@ -5,8 +5,11 @@
  * the gains and FS_K_<NAME> the packing constants; fs_real is the arithmetic type. */
 
 /* One sample on packed parameters p and state s (updated in place): pid_step. */
-static fs_real fs_law_step(const fs_real *p, fs_real *s, fs_real r, fs_real y)
+static fs_real fs_law_step(const fs_real *p, fs_real *s, fs_real r, fs_real y,
+                           fs_real rd, fs_real rdd)
 {
+    (void)rd; /* no feed-forward */
+    (void)rdd;
     fs_real e = r - y;
     fs_real ed = p[FS_P_C] * r - y;
     fs_real d = p[FS_P_A_D] * s[FS_S_DERIVATIVE] + p[FS_P_B_D] * (ed - s[FS_S_ED_PREV]);

@@ -96,7 +96,8 @@ S = indices("PIDStateIndex", STATE)
 
 
 @kernel(inline=True, error_model="numpy")
-def pid_step(p: Any, s: Any, r: float, y: float, aux: Any) -> float:
+def pid_step(p: Any, s: Any, r: float, y: float, aux: Any, rd: float,
+             rdd: float) -> float:
     """One PID sample on packed parameters ``p`` and state ``s`` (updated in place); returns u.
 
     ``p`` and ``s`` are data pointers or arrays; ``aux`` is unused (no tables)."""

@@ -269,7 +269,7 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
         "the Python controller's; link with -lm.",
     ]
     header = _header(name, upper, real, info, gain_names, values, units, ts, n_p, n_s,
-                     has_alpha, _c_text(title))
+                     has_alpha, _c_text(title), law.feedforward)
     consts = [
         _array("fs_p0", packed, real) if packed.size else
         "static const fs_real fs_p0[1] = {0};",
@@ -298,11 +298,13 @@ def _option_text(v: Any) -> str:
 
 def _header(name: str, upper: str, real: Real, info: Sequence[str], gain_names: Sequence[str],
             values: Sequence[float], units: Sequence[str], ts: float, n_p: int, n_s: int,
-            self_tuning: bool, law: str) -> str:
+            self_tuning: bool, law: str, feedforward: bool = False) -> str:
     allowed = "finite and >= 0" + ("; n: > 0 or infinity" if "n" in gain_names else "")
     gains_doc = "\n".join(f" *   g[{i}] = {_c_text(g)} [{_c_text(u)}] (exported: {v!r})"
                           for i, (g, v, u) in enumerate(zip(gain_names, values, units,
                                                             strict=True)))
+    ff_note = ("this law uses them (feed-forward): give them from the motion profile."
+               if feedforward else "this law does not use them.")
     alpha = ""
     if self_tuning:
         alpha = f"""
@@ -346,6 +348,12 @@ void {name}_reset({name}_ctl *c, {name}_real y0, {name}_real u0);
 /* One sample: reference r [m], measurement y [m] -> command u [-], limited; hold it until
  * the next sample. */
 {name}_real {name}_step({name}_ctl *c, {name}_real r, {name}_real y);
+
+/* One sample with the reference's feed-forward signals: reference r [m], its velocity rd
+ * [m/s] and acceleration rdd [m/s^2] at the same instant, measurement y [m] -> command u
+ * [-]. {name}_step is this call with rd = rdd = 0; {ff_note} */
+{name}_real {name}_step_ff({name}_ctl *c, {name}_real r, {name}_real rd,
+    {name}_real rdd, {name}_real y);
 
 /* Replace the gains, keeping the state; the next sample uses them:
 {gains_doc}
@@ -417,7 +425,13 @@ void {name}_reset({name}_ctl *c, {name}_real y0, {name}_real u0)
 
 {name}_real {name}_step({name}_ctl *c, {name}_real r, {name}_real y)
 {{
-    return fs_law_step(c->p, c->s, r, y);
+    return fs_law_step(c->p, c->s, r, y, 0, 0);
+}}
+
+{name}_real {name}_step_ff({name}_ctl *c, {name}_real r, {name}_real rd,
+    {name}_real rdd, {name}_real y)
+{{
+    return fs_law_step(c->p, c->s, r, y, rd, rdd);
 }}
 
 int {name}_set_gains({name}_ctl *c, const double g[{upper}_N_GAINS])

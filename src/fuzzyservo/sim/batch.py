@@ -39,7 +39,7 @@ from .closed_loop import (
     _noise as make_noise,
 )
 from .loops import LawRows, LinearRows, NonlinearRows, Outputs, Signals, kernels, run_chunks
-from .references import Reference, sample_reference
+from .references import Reference, reference_rates, sample_reference
 from .result import BatchResult
 from .stepinfo import METRIC_NAMES, N_METRICS, N_TAIL, TAIL_NAMES, metric_options
 
@@ -218,7 +218,9 @@ def simulate_batch(
     mopts = np.array(metric_options(rise, settle_band, settle_band_2))
     law = LawRows(p=np.ascontiguousarray(cps), s=np.ascontiguousarray(cs0),
                   tables=tuple(controller.tables()))
-    sig = Signals(t=t, r=roff, noise=nz, shift=True)
+    rd, rdd = reference_rates(reference if hasattr(reference, "values") else roff, t)
+    sig = Signals(t=t, r=roff, rd=np.ascontiguousarray(np.atleast_2d(rd)),
+                  rdd=np.ascontiguousarray(np.atleast_2d(rdd)), noise=nz, shift=True)
     out = Outputs(y=y_tr, u=u_tr, alpha=a_tr, x=np.empty((0, 1)), x_end=np.empty(0),
                   mopts=mopts, metrics=metrics, tail_fraction=float(tail_fraction),
                   tail=tail, bad=bad)

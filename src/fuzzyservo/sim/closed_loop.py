@@ -58,6 +58,7 @@ from .references import (
     check_reference,
     check_reference_samples,
     parse_reference,
+    reference_rates,
     sample_reference,
 )
 from .result import SimResult
@@ -339,8 +340,10 @@ class RawRun:
 
 def run_loop(controller: PackedController, plant: Plant, r: FloatArray, *, delay: float,
              disturbance: ArrayLike | None, noise: FloatArray, t: FloatArray,
-             what: str = "closed loop") -> RawRun:
-    """Run the compiled loop of ``plant`` (validated inputs; ``r`` absolute [m]; ``what``
+             what: str = "closed loop",
+             rates: tuple[FloatArray, FloatArray] | None = None) -> RawRun:
+    """Run the compiled loop of ``plant`` (validated inputs; ``r`` absolute [m]; ``rates``
+    the reference's velocity [m/s] and acceleration [m/s²] per sample, None: zeros; ``what``
     names the run in a divergence message).
 
     Raises
@@ -355,8 +358,10 @@ def run_loop(controller: PackedController, plant: Plant, r: FloatArray, *, delay
     loops = kernels(controller.law)
     n = t.size
     y, u, a = np.empty((1, n)), np.empty((1, n)), np.empty((1, n))
-    sig = Signals(t=t, r=r[None, :], noise=noise[None, :] if noise.size else np.empty((0, 0)),
-                  shift=False)
+    rd, rdd = rates if rates is not None else (np.zeros(n), np.zeros(n))
+    sig = Signals(t=t, r=r[None, :], rd=np.ascontiguousarray(rd, dtype=np.float64)[None, :],
+                  rdd=np.ascontiguousarray(rdd, dtype=np.float64)[None, :],
+                  noise=noise[None, :] if noise.size else np.empty((0, 0)), shift=False)
     if isinstance(plant, LinearPlant):
         if disturbance is not None:
             raise ParameterError("a load-force disturbance needs the nonlinear plant")
@@ -467,7 +472,8 @@ def simulate(
     stroke, resolution = plant_limits(plant)
     check_reference_samples(r, t, start=plant.y0, stroke=stroke, resolution=resolution)
     noise = _noise(noise_std, rng, (t.size,))
-    run = run_loop(controller, plant, r, delay=delay, disturbance=disturbance, noise=noise, t=t)
+    run = run_loop(controller, plant, r, delay=delay, disturbance=disturbance, noise=noise, t=t,
+                   rates=reference_rates(reference, t))
     info: dict[str, Any] = {"controller": controller, "plant": plant, "noise_std": noise_std}
     return SimResult(t=t, r=r, y=run.y, u=run.u, alpha=run.alpha, x=run.x,
                      state_names=plant.state_names, ts=ts, delay=delay, info=info)

@@ -86,6 +86,8 @@ class Signals(NamedTuple):
 
     t: FloatArray  #: sample times (n_t,) [s]
     r: FloatArray  #: reference offsets from each start position (1 or runs, n_t) [m]
+    rd: FloatArray  #: reference velocity ṙ (1 or runs, n_t) [m/s]
+    rdd: FloatArray  #: reference acceleration r̈ (1 or runs, n_t) [m/s²]
     noise: FloatArray  #: measurement noise (1 or runs, n_t) or (0, 0) [m]
     shift: bool  #: True: ``r`` is offset from each run's start y0; False: as it is
 
@@ -253,7 +255,7 @@ LAW_TRACE: int = -1
 
 @template(inline=True, error_model="numpy")
 def linear_one(pp: Any, sp: Any, aux: Any, lp: Any, n: int, d: int, u_op: float, x_op: Any,
-               r: Any, noise: Any, has_noise: bool, y0: float, x: Any, xn: Any, ubuf: Any,
+               r: Any, rd: Any, rdd: Any, noise: Any, has_noise: bool, y0: float, x: Any, xn: Any, ubuf: Any,
                n_ring: int, y_out: Any, u_out: Any, a_out: Any, x_out: FloatArray,
                n_t: int) -> int:
     """One closed loop on a packed linear plant (pointer ``lp``; see
@@ -278,7 +280,7 @@ def linear_one(pp: Any, sp: Any, aux: Any, lp: Any, n: int, d: int, u_op: float,
             return k
         if has_noise:
             y += noise[k]
-        u = LAW_STEP(pp, sp, r[k], y, aux)
+        u = LAW_STEP(pp, sp, r[k], y, aux, rd[k], rdd[k])
         y_out[k] = y
         u_out[k] = u
         a_out[k] = sp[LAW_TRACE] if LAW_TRACE >= 0 else np.nan
@@ -296,6 +298,7 @@ def linear_one(pp: Any, sp: Any, aux: Any, lp: Any, n: int, d: int, u_op: float,
 @template(inline=True, error_model="numpy")
 def linear_two(pa: Any, sa: Any, pb: Any, sb: Any, aux: Any, la: Any, lb: Any, n_a: int,
                n_b: int, d_a: int, d_b: int, u_op_a: float, u_op_b: float, r_a: Any, r_b: Any,
+               rd_a: Any, rdd_a: Any, rd_b: Any, rdd_b: Any,
                noise_a: Any, noise_b: Any, noisy_a: bool, noisy_b: bool, y0_a: float,
                y0_b: float, xa: Any, xna: Any, xb: Any, xnb: Any, ubuf_a: Any, ubuf_b: Any,
                n_ring: int, y_a: Any, u_a: Any, al_a: Any, y_b: Any, u_b: Any, al_b: Any,
@@ -336,12 +339,12 @@ def linear_two(pa: Any, sa: Any, pb: Any, sb: Any, aux: Any, la: Any, lb: Any, n
         if not (live_a or live_b):
             break
         if live_a:
-            ua = LAW_STEP(pa, sa, r_a[k], ya, aux)
+            ua = LAW_STEP(pa, sa, r_a[k], ya, aux, rd_a[k], rdd_a[k])
             y_a[k] = ya
             u_a[k] = ua
             al_a[k] = sa[LAW_TRACE] if LAW_TRACE >= 0 else np.nan
         if live_b:
-            ub = LAW_STEP(pb, sb, r_b[k], yb, aux)
+            ub = LAW_STEP(pb, sb, r_b[k], yb, aux, rd_b[k], rdd_b[k])
             y_b[k] = yb
             u_b[k] = ub
             al_b[k] = sb[LAW_TRACE] if LAW_TRACE >= 0 else np.nan
@@ -393,6 +396,7 @@ def linear_chunk(lo: int, hi: int, law: LawRows, plant: LinearRows, sig: Signals
     aux = LAW_PREPARE(law.tables)
     n_nz = sig.noise.shape[0]
     n_r = sig.r.shape[0]
+    n_rd = sig.rd.shape[0]
     i = lo
     while i < hi:
         m = 1 if keep_x else min(2, hi - i)  # runs in this step: a pair, or one
@@ -423,7 +427,10 @@ def linear_chunk(lo: int, hi: int, law: LawRows, plant: LinearRows, sig: Signals
                 data_pointer(law.p[i]), data_pointer(cs[0]), data_pointer(law.p[i + 1]),
                 data_pointer(cs[1]), aux, data_pointer(plant.lp[i]),
                 data_pointer(plant.lp[i + 1]), na, nb, da, db, plant.u0[i], plant.u0[i + 1],
-                data_pointer(rbuf[0]), data_pointer(rbuf[1]), nza, nzb, n_nz > 0, n_nz > 0,
+                data_pointer(rbuf[0]), data_pointer(rbuf[1]),
+                data_pointer(sig.rd[min(i, n_rd - 1)]), data_pointer(sig.rdd[min(i, n_rd - 1)]),
+                data_pointer(sig.rd[min(i + 1, n_rd - 1)]),
+                data_pointer(sig.rdd[min(i + 1, n_rd - 1)]), nza, nzb, n_nz > 0, n_nz > 0,
                 plant.y0[i], plant.y0[i + 1], data_pointer(x[0]), data_pointer(xn[0]),
                 data_pointer(x[1]), data_pointer(xn[1]), data_pointer(ring[0]),
                 data_pointer(ring[1]), n_ring, data_pointer(ya), data_pointer(ua),
@@ -434,7 +441,9 @@ def linear_chunk(lo: int, hi: int, law: LawRows, plant: LinearRows, sig: Signals
         else:
             out.bad[i] = linear_one(
                 data_pointer(law.p[i]), data_pointer(cs[0]), aux, data_pointer(plant.lp[i]),
-                na, da, plant.u0[i], data_pointer(plant.x_op), data_pointer(rbuf[0]), nza,
+                na, da, plant.u0[i], data_pointer(plant.x_op), data_pointer(rbuf[0]),
+                data_pointer(sig.rd[min(i, n_rd - 1)]), data_pointer(sig.rdd[min(i, n_rd - 1)]),
+                nza,
                 n_nz > 0, plant.y0[i], data_pointer(x[0]), data_pointer(xn[0]),
                 data_pointer(ring[0]), n_ring, data_pointer(ya), data_pointer(ua),
                 data_pointer(aa), out.x, n_t)
@@ -447,7 +456,8 @@ def linear_chunk(lo: int, hi: int, law: LawRows, plant: LinearRows, sig: Signals
 
 @template(inline=True, error_model="numpy")
 def nonlinear_one(pp: Any, sp: Any, aux: Any, p: FloatArray, ts: float, d: int, f: float,
-                  n_sub: int, u_init: float, r: Any, noise: Any, has_noise: bool,
+                  n_sub: int, u_init: float, r: Any, rd: Any, rdd: Any, noise: Any,
+                  has_noise: bool,
                   force: FloatArray, x: FloatArray, work: FloatArray, ubuf: Any, n_ring: int,
                   y_out: Any, u_out: Any, a_out: Any, x_out: FloatArray, n_t: int) -> int:
     """One closed loop on the nonlinear plant with packed parameters ``p`` (a private copy:
@@ -482,7 +492,7 @@ def nonlinear_one(pp: Any, sp: Any, aux: Any, p: FloatArray, ts: float, d: int, 
             y += noise[k]
         if res > 0.0:
             y = res * math.floor(y / res + 0.5)
-        u = LAW_STEP(pp, sp, r[k], y, aux)
+        u = LAW_STEP(pp, sp, r[k], y, aux, rd[k], rdd[k])
         y_out[k] = y
         u_out[k] = u
         a_out[k] = sp[LAW_TRACE] if LAW_TRACE >= 0 else np.nan
@@ -532,6 +542,7 @@ def nonlinear_chunk(lo: int, hi: int, law: LawRows, plant: NonlinearRows, sig: S
     aux = LAW_PREPARE(law.tables)
     n_nz = sig.noise.shape[0]
     n_r = sig.r.shape[0]
+    n_rd = sig.rd.shape[0]
     for i in range(lo, hi):
         for j in range(nx):
             x[j] = plant.x0[i, j]
@@ -550,7 +561,9 @@ def nonlinear_chunk(lo: int, hi: int, law: LawRows, plant: NonlinearRows, sig: S
         d = min(plant.d[i], n_t)  # a command delayed past the run never arrives
         out.bad[i] = nonlinear_one(
             data_pointer(law.p[i]), data_pointer(cs), aux, p, plant.ts, d, plant.f[i],
-            plant.n_sub[i], plant.u0[i], data_pointer(rbuf), nz, n_nz > 0, plant.force, x,
+            plant.n_sub[i], plant.u0[i], data_pointer(rbuf),
+            data_pointer(sig.rd[min(i, n_rd - 1)]), data_pointer(sig.rdd[min(i, n_rd - 1)]), nz,
+            n_nz > 0, plant.force, x,
             work, data_pointer(ring), n_ring, data_pointer(yv), data_pointer(uv),
             data_pointer(av), out.x, n_t)
         if out.x_end.shape[0] > 0:

@@ -1,9 +1,13 @@
 """Reference signals for the closed loop, as offsets [m] from the start position.
 
-Each reference is a frozen dataclass with ``values(t) -> r`` (t [s] -> r [m], numpy arrays);
-the simulator adds the plant's initial output y(0), so ``Step(0.1)`` moves the piston 0.1 m
-from wherever it starts (0 on the linear plant, the start position on the nonlinear plant).
-:func:`parse_reference` reads the CLI form (``step:0.1``, ``ramp:0.05``, ...).
+Each reference is a frozen dataclass with ``values(t) -> r`` (t [s] -> r [m], numpy arrays)
+and ``rates(t) -> (ṙ, r̈)`` [m/s, m/s²], its velocity and acceleration, computed in closed form
+at the sample instants (the feed-forward signals of controllers such as ``ffpd``; a jump of a
+step or of a trapezoid's acceleration is not sampled as an impulse: at a discontinuity the
+value from the right is taken). The simulator adds the plant's initial output y(0), so
+``Step(0.1)`` moves the piston 0.1 m from wherever it starts (0 on the linear plant, the start
+position on the nonlinear plant). :func:`parse_reference` reads the CLI form (``step:0.1``,
+``ramp:0.05``, ``scurve:0.2:0.25:2:40``, ``chirp:0.005:0.5:20:10``...).
 """
 
 from __future__ import annotations
@@ -18,9 +22,11 @@ from .._typing import ArrayLike, FloatArray
 from ..errors import InputError
 
 __all__ = [
+    "Chirp",
     "MultiStep",
     "Ramp",
     "Reference",
+    "SCurve",
     "Sine",
     "Step",
     "Trapezoid",
@@ -28,6 +34,7 @@ __all__ = [
     "check_reference",
     "check_reference_samples",
     "parse_reference",
+    "reference_rates",
     "sample_reference",
 ]
 
@@ -55,6 +62,23 @@ class Reference(Protocol):
         """Return r [m] at the times ``t`` [s]."""
         ...
 
+    def rates(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Return ṙ [m/s] and r̈ [m/s²] at the times ``t`` [s]."""
+        ...
+
+
+def _zeros(t: FloatArray) -> tuple[FloatArray, FloatArray]:
+    z = np.zeros(np.shape(t))
+    return z, z.copy()
+
+
+def _libm(fn: object, w: FloatArray) -> FloatArray:
+    """The C library's sin or cos per element, as the compiled kernels call it: numpy's
+    vector functions (AVX-512 processors) round differently (docs/architecture.md)."""
+    out = np.array([fn(v) for v in np.asarray(w).ravel().tolist()],  # type: ignore[operator]
+                   dtype=np.float64)
+    return out.reshape(np.shape(w))
+
 
 @dataclass(frozen=True, slots=True)
 class Step:
@@ -70,6 +94,10 @@ class Step:
     def values(self, t: FloatArray) -> FloatArray:
         """r(t) [m]."""
         return np.where(np.asarray(t) >= self.time, self.amplitude, 0.0)
+
+    def rates(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """ṙ = r̈ = 0 (the jump is not sampled as an impulse)."""
+        return _zeros(t)
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,6 +125,10 @@ class MultiStep:
         levels = np.concatenate([[0.0], np.asarray(self.levels, dtype=np.float64)])
         return levels[idx + 1]
 
+    def rates(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """ṙ = r̈ = 0 (the jumps are not sampled as impulses)."""
+        return _zeros(t)
+
 
 @dataclass(frozen=True, slots=True)
 class Ramp:
@@ -122,6 +154,14 @@ class Ramp:
             r = np.minimum(r, self.final) if self.slope >= 0 else np.maximum(r, self.final)
         return r
 
+    def rates(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """ṙ = slope from the start until the final value is reached, else 0; r̈ = 0."""
+        tt = np.asarray(t, dtype=np.float64)
+        moving = tt >= self.time
+        if self.final is not None:
+            moving &= np.abs(self.slope * (tt - self.time)) < abs(self.final)
+        return np.where(moving, self.slope, 0.0), np.zeros(tt.shape)
+
 
 @dataclass(frozen=True, slots=True)
 class Sine:
@@ -142,11 +182,15 @@ class Sine:
 
     def values(self, t: FloatArray) -> FloatArray:
         """r(t) [m]."""
-        # the C library's sin per element, as the compiled kernels call it: numpy's vector
-        # sin (AVX-512 processors) rounds differently (docs/architecture.md)
         w = 2.0 * np.pi * self.frequency * np.asarray(t, dtype=np.float64)
-        s = np.array([math.sin(v) for v in w.ravel().tolist()], dtype=np.float64)
-        return self.amplitude * s.reshape(w.shape)
+        return self.amplitude * _libm(math.sin, w)
+
+    def rates(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """ṙ = A ω cos(ωt), r̈ = -A ω² sin(ωt), ω = 2π f."""
+        om = 2.0 * np.pi * self.frequency
+        w = om * np.asarray(t, dtype=np.float64)
+        return self.amplitude * om * _libm(math.cos, w), -self.amplitude * om**2 * _libm(
+            math.sin, w)
 
 
 @dataclass(frozen=True, slots=True)
@@ -182,6 +226,188 @@ class Trapezoid:
                                              np.where(td < ta, dec, d)))
         return sign * r
 
+    def rates(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """ṙ and r̈ of the profile (the acceleration's jumps taken from the right)."""
+        d = abs(self.distance)
+        sign = 1.0 if self.distance >= 0 else -1.0
+        v = min(self.v_max, math.sqrt(d * self.a_max))
+        ta = v / self.a_max
+        tc = (d - v * ta) / v if v > 0 else 0.0
+        raw = np.asarray(t, dtype=np.float64) - self.time
+        tau = np.clip(raw, 0.0, None)
+        td = tau - ta - tc
+        vel = np.where(tau < ta, self.a_max * tau, np.where(
+            tau < ta + tc, v, np.where(td < ta, v - self.a_max * td, 0.0)))
+        acc = np.where(raw < 0.0, 0.0, np.where(tau < ta, self.a_max, np.where(
+            tau < ta + tc, 0.0, np.where(td < ta, -self.a_max, 0.0))))
+        return sign * np.where(raw < 0.0, 0.0, vel), sign * acc
+
+
+@dataclass(frozen=True, slots=True)
+class SCurve:
+    """Jerk-limited (S-curve) point-to-point move of ``distance`` [m] from ``time`` [s]: speed
+    at most ``v_max`` [m/s], acceleration at most ``a_max`` [m/s²], jerk ``j_max`` [m/s³].
+
+    The time-optimal seven-phase profile under these limits (jerk +j, 0, -j, cruise, -j, 0,
+    +j; Biagiotti & Melchiorri, *Trajectory Planning for Automatic Machines and Robots*,
+    Springer 2008, sec. 3.4, with zero speed and acceleration at both ends): the acceleration
+    phase reaches a_lim = min(a_max, sqrt(v_lim j)), the peak speed v_lim is v_max or, for a
+    short move, the largest speed the distance allows. Position, velocity and acceleration
+    are exact polynomials of time, evaluated at the sample instants.
+    """
+
+    distance: float  #: travel [m]
+    v_max: float  #: speed limit [m/s], > 0
+    a_max: float  #: acceleration limit [m/s²], > 0
+    j_max: float  #: jerk limit [m/s³], > 0
+    time: float = 0.0  #: start of the move [s]
+
+    def __post_init__(self) -> None:
+        _finite("scurve distance", self.distance)
+        _time("scurve start time", self.time)
+        for name, v in (("v_max", self.v_max), ("a_max", self.a_max), ("j_max", self.j_max)):
+            if not (_finite(f"scurve {name}", v) > 0.0):
+                raise InputError(f"scurve {name} must be > 0, got {v!r}")
+
+    def phases(self) -> tuple[float, float, float, float]:
+        """(T_j, T_a, T_v, v_lim): jerk time, acceleration phase (T_a >= 2 T_j... T_a = 2 T_j
+        + constant-acceleration time), cruise time [s] and peak speed [m/s]."""
+        d = abs(self.distance)
+        j, a, vm = self.j_max, self.a_max, self.v_max
+        if d == 0.0:
+            return 0.0, 0.0, 0.0, 0.0
+
+        def accel_phase(v: float) -> tuple[float, float]:
+            # time to reach speed v from rest: jerk time tj and whole phase ta
+            if v * j >= a * a:
+                tj = a / j
+                return tj, tj + v / a
+            tj = math.sqrt(v / j)
+            return tj, 2.0 * tj
+
+        tj, ta = accel_phase(vm)
+        if d >= ta * vm:  # cruise at v_max: the acceleration phase covers v ta / 2 each way
+            return tj, ta, d / vm - ta, vm
+        # no cruise: the largest v with v ta(v) = d (monotone in v), by bisection to the last
+        # bit of a double
+        lo, hi = 0.0, vm
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            if mid in (lo, hi):
+                break
+            if mid * accel_phase(mid)[1] <= d:
+                lo = mid
+            else:
+                hi = mid
+        tj, ta = accel_phase(lo)
+        return tj, ta, max(d / lo - ta, 0.0) if lo > 0 else 0.0, lo
+
+    @property
+    def duration(self) -> float:
+        """Length of the move [s]."""
+        tj, ta, tv, _ = self.phases()
+        return 2.0 * ta + tv
+
+    def _profile(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        tj, ta, tv, vl = self.phases()
+        j = self.j_max
+        al = j * tj  # acceleration reached
+        d = abs(self.distance)
+        raw = np.asarray(t, dtype=np.float64) - self.time
+        tau = np.clip(raw, 0.0, None)
+        n = tau.shape
+        pos, vel, acc = np.zeros(n), np.zeros(n), np.zeros(n)
+
+        def accel(x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+            """Acceleration phase from rest, x in [0, ta]."""
+            p1 = j * x**3 / 6.0
+            v1 = 0.5 * j * x**2
+            a1 = j * x
+            xm = x - tj
+            p2 = j * tj**3 / 6.0 + 0.5 * j * tj**2 * xm + 0.5 * al * xm**2
+            v2 = 0.5 * j * tj**2 + al * xm
+            xe = ta - x  # time left in the phase
+            p3 = vl * ta / 2.0 - (vl * xe - j * xe**3 / 6.0)
+            v3 = vl - 0.5 * j * xe**2
+            a3 = j * xe
+            first = x < tj
+            last = x >= ta - tj
+            return (np.where(first, p1, np.where(last, p3, p2)),
+                    np.where(first, v1, np.where(last, v3, v2)),
+                    np.where(first, a1, np.where(last, a3, al)))
+
+        if vl == 0.0:
+            return pos, vel, acc
+        t_dec = ta + tv  # start of the deceleration
+        p_a, v_a, a_a = accel(np.minimum(tau, ta))
+        back = np.clip(2.0 * ta + tv - tau, 0.0, ta)  # time to the end, inside the phase
+        p_d, v_d, a_d = accel(back)
+        in_acc = tau < ta
+        in_cruise = (tau >= ta) & (tau < t_dec)
+        pos = np.where(in_acc, p_a, np.where(in_cruise, vl * ta / 2.0 + vl * (tau - ta),
+                                             d - p_d))
+        vel = np.where(in_acc, v_a, np.where(in_cruise, vl, v_d))
+        acc = np.where(in_acc, a_a, np.where(in_cruise, 0.0, -a_d))
+        done = tau >= 2.0 * ta + tv
+        pos = np.where(done, d, pos)
+        vel = np.where(done | (raw < 0.0), 0.0, vel)
+        acc = np.where(done | (raw < 0.0), 0.0, acc)
+        return pos, vel, acc
+
+    def values(self, t: FloatArray) -> FloatArray:
+        """r(t) [m]."""
+        sign = 1.0 if self.distance >= 0 else -1.0
+        return sign * self._profile(t)[0]
+
+    def rates(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """ṙ [m/s] and r̈ [m/s²]."""
+        sign = 1.0 if self.distance >= 0 else -1.0
+        _, v, a = self._profile(t)
+        return sign * v, sign * a
+
+
+@dataclass(frozen=True, slots=True)
+class Chirp:
+    """Linear sine sweep ``amplitude`` sin(φ(t)) [m] from ``f0`` to ``f1`` [Hz] over
+    ``duration`` [s], φ(t) = 2π (f0 t + (f1 - f0) t² / (2 T)); after T it goes on at f1.
+
+    A run samples it every T_s: :func:`check_reference` refuses an end frequency at or above
+    half the sample rate.
+    """
+
+    amplitude: float  #: amplitude [m]
+    f0: float  #: start frequency [Hz], > 0
+    f1: float  #: end frequency [Hz], > 0
+    duration: float  #: sweep time T [s], > 0
+
+    def __post_init__(self) -> None:
+        _finite("chirp amplitude", self.amplitude)
+        for name, v in (("start frequency", self.f0), ("end frequency", self.f1),
+                        ("duration", self.duration)):
+            if not (_finite(f"chirp {name}", v) > 0.0):
+                raise InputError(f"chirp {name} must be > 0, got {v!r}")
+
+    def _phase(self, t: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """φ [rad], φ' [rad/s] and φ'' [rad/s²] at t."""
+        tt = np.asarray(t, dtype=np.float64)
+        k = (self.f1 - self.f0) / self.duration  # sweep rate [Hz/s]
+        tc = np.minimum(tt, self.duration)
+        sweeping = tt < self.duration
+        phi = 2.0 * np.pi * (self.f0 * tc + 0.5 * k * tc**2 + self.f1 * (tt - tc))
+        dphi = 2.0 * np.pi * np.where(sweeping, self.f0 + k * tt, self.f1)
+        ddphi = np.where(sweeping, 2.0 * np.pi * k, 0.0)
+        return phi, dphi, ddphi
+
+    def values(self, t: FloatArray) -> FloatArray:
+        """r(t) [m]."""
+        return self.amplitude * _libm(math.sin, self._phase(t)[0])
+
+    def rates(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """ṙ = A φ' cos φ, r̈ = A (φ'' cos φ - φ'² sin φ)."""
+        phi, d1, d2 = self._phase(t)
+        c, s = _libm(math.cos, phi), _libm(math.sin, phi)
+        return self.amplitude * d1 * c, self.amplitude * (d2 * c - d1**2 * s)
+
 
 @dataclass(frozen=True, slots=True, eq=False)
 class UserReference:
@@ -209,6 +435,17 @@ class UserReference:
         """r(t) [m]."""
         return np.interp(np.asarray(t, dtype=np.float64), self.times, self.samples)
 
+    def rates(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """ṙ: the slope of the interpolating segment (from the right at a sample, 0 outside
+        the samples); r̈ = 0 (the kinks are not sampled as impulses)."""
+        tt = np.asarray(t, dtype=np.float64)
+        slopes = np.diff(self.samples) / np.diff(self.times)
+        seg = np.searchsorted(self.times, tt, side="right") - 1
+        inside = (seg >= 0) & (seg < slopes.size)
+        v = np.where(inside, slopes[np.clip(seg, 0, max(slopes.size - 1, 0))]
+                     if slopes.size else 0.0, 0.0)
+        return np.asarray(v, dtype=np.float64), np.zeros(tt.shape)
+
 
 def _numbers(spec: str, body: str, n_min: int, n_max: int) -> list[float]:
     parts = body.split(":") if body else []
@@ -228,7 +465,8 @@ def parse_reference(spec: str) -> Reference:
     """Parse the CLI form of a reference.
 
     ``step:A[:T]``, ``multistep:T1=A1,T2=A2,...``, ``ramp:SLOPE[:T[:FINAL]]``,
-    ``sine:A:F``, ``trapezoid:DIST:VMAX:AMAX[:T]`` (m, s, m/s, m/s², Hz).
+    ``sine:A:F``, ``trapezoid:DIST:VMAX:AMAX[:T]``, ``scurve:DIST:VMAX:AMAX:JMAX[:T]``,
+    ``chirp:A:F0:F1:DURATION`` (m, s, m/s, m/s², m/s³, Hz).
     """
     kind, _, body = spec.partition(":")
     kind = kind.strip().lower()
@@ -254,17 +492,24 @@ def parse_reference(spec: str) -> Reference:
     if kind == "trapezoid":
         a = _numbers(spec, body, 3, 4)
         return Trapezoid(*a)
+    if kind == "scurve":
+        a = _numbers(spec, body, 4, 5)
+        return SCurve(*a)
+    if kind == "chirp":
+        a = _numbers(spec, body, 4, 4)
+        return Chirp(*a)
     raise InputError(
         f"unknown reference {spec!r}; allowed: step:A[:T], multistep:T1=A1,..., "
-        f"ramp:SLOPE[:T[:FINAL]], sine:A:F, trapezoid:DIST:VMAX:AMAX[:T]")
+        f"ramp:SLOPE[:T[:FINAL]], sine:A:F, trapezoid:DIST:VMAX:AMAX[:T], "
+        f"scurve:DIST:VMAX:AMAX:JMAX[:T], chirp:A:F0:F1:DURATION")
 
 
 def _first_change(reference: object) -> tuple[str, float] | None:
     """The instant a reference first departs from 0, with the name of that time; None when it
     has no such instant (a sine, user samples)."""
-    if isinstance(reference, Step | Ramp | Trapezoid):
-        return {Step: "step time", Ramp: "ramp time",
-                Trapezoid: "trapezoid start time"}[type(reference)], reference.time
+    if isinstance(reference, Step | Ramp | Trapezoid | SCurve):
+        return {Step: "step time", Ramp: "ramp time", Trapezoid: "trapezoid start time",
+                SCurve: "scurve start time"}[type(reference)], reference.time
     if isinstance(reference, MultiStep):
         return "first multistep time", reference.times[0]
     return None
@@ -293,11 +538,14 @@ def check_reference(reference: Reference | ArrayLike, *, ts: float, duration: fl
         A sine at or above half the sample rate, or a reference that starts at or after the
         end of the run.
     """
-    if isinstance(reference, Sine):
+    if isinstance(reference, Sine | Chirp):
         nyquist = 0.5 / ts
-        if reference.frequency >= nyquist:
+        f = reference.frequency if isinstance(reference, Sine) else max(reference.f0,
+                                                                         reference.f1)
+        what = "sine frequency" if isinstance(reference, Sine) else "chirp frequency"
+        if f >= nyquist:
             raise InputError(
-                f"sine frequency {reference.frequency!r} Hz is at or above half the sample "
+                f"{what} {f!r} Hz is at or above half the sample "
                 f"rate, 1/(2 ts) = {nyquist:g} Hz at ts = {ts!r} s: the samples would alias; "
                 f"give a frequency below {nyquist:g} Hz or a shorter sample time")
     first = _first_change(reference)
@@ -364,3 +612,26 @@ def sample_reference(reference: Reference | ArrayLike, t: FloatArray) -> FloatAr
     return np.ascontiguousarray(r)
 
 
+
+
+def reference_rates(reference: Reference | ArrayLike, t: FloatArray
+                    ) -> tuple[FloatArray, FloatArray]:
+    """The reference's velocity ṙ [m/s] and acceleration r̈ [m/s²] at ``t`` [s]: in closed
+    form for a reference object (its ``rates``); for samples (an array, one per sample or a
+    row per run) by second-order differences along time (:func:`numpy.gradient`), the one
+    estimate samples allow; zeros for fewer than 3 samples."""
+    if hasattr(reference, "values"):
+        rates = getattr(reference, "rates", None)
+        if rates is None:  # a user's reference object with values() only
+            r = np.asarray(reference.values(t), dtype=np.float64)
+            return reference_rates(r, t)
+        v, a = rates(t)
+        return (np.ascontiguousarray(v, dtype=np.float64),
+                np.ascontiguousarray(a, dtype=np.float64))
+    r = np.asarray(reference, dtype=np.float64)
+    tt = np.asarray(t, dtype=np.float64)
+    if tt.size < 3 or r.shape[-1] != tt.size:
+        return np.zeros(r.shape), np.zeros(r.shape)
+    v = np.gradient(r, tt, axis=-1, edge_order=2)
+    a = np.gradient(v, tt, axis=-1, edge_order=2)
+    return np.ascontiguousarray(v), np.ascontiguousarray(a)
