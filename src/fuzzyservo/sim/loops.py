@@ -255,9 +255,9 @@ LAW_TRACE: int = -1
 
 @template(inline=True, error_model="numpy")
 def linear_one(pp: Any, sp: Any, aux: Any, lp: Any, n: int, d: int, u_op: float, x_op: Any,
-               r: Any, rd: Any, rdd: Any, noise: Any, has_noise: bool, y0: float, x: Any, xn: Any, ubuf: Any,
-               n_ring: int, y_out: Any, u_out: Any, a_out: Any, x_out: FloatArray,
-               n_t: int) -> int:
+               r: Any, rd: Any, rdd: Any, noise: Any, has_noise: bool, y0: float, x: Any,
+               xn: Any, ubuf: Any, n_ring: int, y_out: Any, u_out: Any, a_out: Any,
+               x_out: FloatArray, n_t: int) -> int:
     """One closed loop on a packed linear plant (pointer ``lp``; see
     ``LinearPlant.discretize``), all arrays as data pointers but the kept states ``x_out``.
 
