@@ -20,8 +20,9 @@ from tqdm import tqdm
 
 from .. import __version__
 from ..errors import InputError, OutputError, ParameterError
-from ..study.paper_study import StudyConfig
-from ..study.runner import PLANTS, reproduce
+from ..study.paper_study import TRACKING_KEYS, StudyConfig
+from ..study.runner import GAIN_FILES, PLANTS, reproduce
+from ..study.tracking import TrackingConfig
 from . import HELP
 from ._plantargs import add_plant_arguments, params_from_args, params_given, set_name
 from ._runargs import add_system_arguments, systems_from_args, systems_record
@@ -78,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
     from_files = tuple((role, systems[role]) for role, _, _ in record) if systems else ()
     cfg = StudyConfig(params=params, set_name=set_name(args), duration=args.duration,
                       systems=from_files,
-                      no_rule_value=getattr(args, "no_rule_value", None) if from_files else None)
+                      no_rule_value=getattr(args, "no_rule_value", None) if from_files else None,
+                      tracking=TrackingConfig())
     plants = PLANTS if args.plant == "both" else (args.plant,)
     if args.c8_samples is not None and not 0 <= args.c8_samples <= 100_000:
         raise ParameterError(f"--c8-samples must be an integer in [0, 100000], got "
@@ -87,14 +89,18 @@ def run(args: argparse.Namespace) -> int:
     # or systems they would not be this study's controllers, so they are left out (a note)
     custom = bool(args.retune or args.gains_dir is not None or params_given(args) or from_files)
     sweeps = args.c8_samples != 0 and not custom
-    total = len(plants) * (3 + (4 if args.retune else 0) + int(sweeps)) + 2
+    # stages per plant: nominal runs, delay sweep, changed plants, one per design of the
+    # tracking study; the tunings with --retune; C8's sweep; then figure 3 and the report
+    n_track = len(TRACKING_KEYS)
+    total = len(plants) * (3 + n_track + (len(GAIN_FILES) - 2 if args.retune else 0)
+                           + int(sweeps)) + 2
     quiet = args.quiet
     bar = tqdm(total=total, desc="reproduce", unit="stage", file=sys.stderr,
                disable=quiet, mininterval=0.0 if os.environ.get("CI") else 0.1)
 
     def progress(stage: str) -> None:
         bar.set_postfix_str(stage, refresh=False)
-        bar.update(3 if "reused" in stage else 1)
+        bar.update(3 + n_track if "reused" in stage else 1)
 
     meta = {
         "fuzzyservo": __version__,

@@ -58,6 +58,7 @@ __all__ = [
     "oscillation",
     "save",
     "step_figure",
+    "tracking_figure",
 ]
 
 #: Colour of a run given none (:attr:`Curve.colour`).
@@ -521,6 +522,47 @@ def delay_sweep_figure(delays: FloatArray, values: Mapping[str, FloatArray],
         bottom = strip
     bottom.set_xlabel("transport (hose) delay [ms]  (linear to "
                       f"{SWEEP_LINTHRESH_MS:g} ms, logarithmic above)")
+    return fig
+
+
+def tracking_figure(curves: Sequence[Curve], title: str, *, what: str = "error",
+                    since: float = 0.0, mark: float | None = None,
+                    mark_label: str = "") -> Figure:
+    """A tracking or disturbance experiment: above, the reference and each run's position
+    [mm from the first sample]; below, each run's tracking error r - y (``what="error"``)
+    or its deviation from its position at ``mark`` (``what="deviation"``) [mm], from
+    ``since`` [s] on; a dotted line at ``mark`` [s] (the end of a move, a load step)."""
+    fig = _figure(10.0, 6.5)
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(1.0, 1.3))
+    ref = curves[0]
+    y0 = float(ref.y[0])
+    k0 = int(np.searchsorted(ref.t, since, side="left"))
+    top.plot(ref.t[k0:], (ref.r[k0:] - y0) * 1e3, color="k", lw=1.0, ls=(0, (4, 3)),
+             label="reference")
+    for c in curves:
+        colour = _colour(c)
+        top.plot(c.t[k0:], (c.y[k0:] - y0) * 1e3, color=colour, lw=1.2, ls=c.linestyle,
+                 label=c.label)
+        if what == "deviation":
+            km = int(np.searchsorted(c.t, mark if mark is not None else 0.0, side="left"))
+            v = (c.y - c.y[min(km, c.y.size - 1)]) * 1e3
+        else:
+            v = (c.r - c.y) * 1e3
+        bottom.plot(c.t[k0:], v[k0:], color=colour, lw=1.2, ls=c.linestyle)
+    for ax in (top, bottom):
+        ax.grid(True, alpha=0.3)
+        if mark is not None:
+            ax.axvline(mark, color="0.4", lw=0.8, ls=":")
+    if mark is not None and mark_label:
+        bottom.text(mark, 1.0, f" {mark_label}", transform=bottom.get_xaxis_transform(),
+                    va="top", ha="left", fontsize=8, color="0.3")
+    top.set_ylabel(r"position $x - x(0)$ [mm]")
+    bottom.set_ylabel("deviation from the position at the load step [mm]"
+                      if what == "deviation" else "tracking error r - y [mm]")
+    bottom.set_xlabel("time t [s]")
+    bottom.set_xlim(float(ref.t[k0]), float(ref.t[-1]))
+    _legend_below(fig, top, 2)
+    fig.suptitle(title)
     return fig
 
 

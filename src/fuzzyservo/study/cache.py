@@ -29,12 +29,13 @@ from .._typing import FloatArray
 from ..sim import SimResult
 from .claims import Claim, Value
 from .paper_study import ControllerCase, PlantStudy
+from .tracking import TrackingStudy
 
 __all__ = ["CACHE_FORMAT", "CacheEntryError", "load_study", "save_study"]
 
 #: Version of the entry layout; an entry of another layout is stale. 2: claims carry their
-#: rule, thresholds and data (issue 10).
-CACHE_FORMAT = 2
+#: rule, thresholds and data (issue 10); 3: the tracking study (issue 25).
+CACHE_FORMAT = 3
 
 _RUN_FIELDS = ("t", "r", "y", "u", "alpha", "x")
 
@@ -70,7 +71,16 @@ def save_study(path: str | Path, study: PlantStudy, *, key: str, version: str) -
         "delay_margins": study.delay_margins, "delay_failures": study.delay_failures,
         "variant_metrics": study.variant_metrics,
         "claims": [c.as_dict() for c in study.claims],
+        "tracking": None,
     }
+    tr = study.tracking
+    if tr is not None:
+        meta["tracking"] = {
+            "keys": list(tr.keys), "sine": tr.sine, "move": tr.move, "load": tr.load,
+            "load_force": tr.load_force,
+            "cases": [[c.key, c.label, c.kind, c.gains] for c in study.tracking_cases],
+            "runs": [[name, _put_run(arrays, f"tracking/{i}", r)]
+                     for i, (name, r) in enumerate(tr.runs.items())]}
     with atomic_write(path, binary=True) as fh:
         entries: dict[str, Any] = {"meta": np.array(json.dumps(meta)), **arrays}
         np.savez(fh, **entries)
@@ -167,6 +177,20 @@ def load_study(path: str | Path, *, key: str, version: str) -> PlantStudy:
             delays = _array(z, "delays")
             sweep = {str(k): {str(m): _array(z, f"sweep/{k}/{m}", delays.shape)
                               for m in ms} for k, ms in meta["sweep"].items()}
+            tracking, t_cases = None, ()
+            tm = meta.get("tracking")
+            if tm is not None:
+                t_cases = tuple(ControllerCase(str(k), str(lab), str(kind), _floats(g))
+                                for k, lab, kind, g in tm["cases"])
+                tracking = TrackingStudy(
+                    plant=str(meta["plant"]), keys=tuple(str(k) for k in tm["keys"]),
+                    sine={str(k): {str(f): _floats(m) for f, m in d.items()}
+                          for k, d in tm["sine"].items()},
+                    move={str(k): _floats(m) for k, m in tm["move"].items()},
+                    load={str(k): _floats(m) for k, m in tm["load"].items()},
+                    load_force=float(tm["load_force"]),
+                    runs={str(name): _get_run(z, f"tracking/{i}", m)
+                          for i, (name, m) in enumerate(tm["runs"])})
             study = PlantStudy(
                 plant=str(meta["plant"]), cases=cases, runs=runs,
                 metrics={str(k): _floats(v) for k, v in meta["metrics"].items()},
@@ -177,7 +201,8 @@ def load_study(path: str | Path, *, key: str, version: str) -> PlantStudy:
                 variant_metrics={str(v): {str(k): _floats(m) for k, m in d.items()}
                                  for v, d in meta["variant_metrics"].items()},
                 variant_runs=variant_runs,
-                claims=[_claim(c) for c in meta["claims"]])
+                claims=[_claim(c) for c in meta["claims"]], tracking=tracking,
+                tracking_cases=t_cases)
     except CacheEntryError:
         raise
     except FileNotFoundError:

@@ -79,6 +79,8 @@ CLAIM_TEXTS: dict[str, str] = {
           "and PID (0.8, 0.55, 0.5) no overshoot.",
     "C8": "The self-tuning fuzzy PI stays robust, and faster than PID, when a system parameter "
           "changes (gains fixed).",
+    "C9": "The self-tuning fuzzy PI tracks a moving reference (the abstract: \"the tracking "
+          "ability of the controller [was] demonstrated through simulations\").",
 }
 
 #: A few words per claim, for the summary and the verdict grid.
@@ -91,6 +93,7 @@ CLAIM_SHORT: dict[str, str] = {
     "C6": "robust with the hose delay",
     "C7": "the paper's PIDs as it describes them",
     "C8": "robust to parameter changes",
+    "C9": "tracking ability",
 }
 
 _ROBUST = (f"robust: it settles into the 2 % band within the run, overshoots at most "
@@ -99,6 +102,12 @@ _ROBUST = (f"robust: it settles into the 2 % band within the run, overshoots at 
            f"{LIMIT_CYCLE_MIN_PP * 100:g} % of the step, at least {LIMIT_CYCLE_MIN_SWINGS} "
            f"swings across its mean, and the second half's peak-to-peak at least "
            f"{LIMIT_CYCLE_MIN_SUSTAIN:g} of the first half's)")
+
+#: C9: a sine counts when its peak speed A 2π f is within the valve's no-load speed at the
+#: full command (beyond it every design saturates and none can follow); on each that counts
+#: the first harmonic of y must be within these bounds of r's, and the RMS error within
+#: TRACK_RMS_VS_BEST x the best design's of the study (baselines included) [-, -, deg, -].
+TRACK_RATIO_MIN, TRACK_RATIO_MAX, TRACK_LAG_MAX_DEG, TRACK_RMS_VS_BEST = 0.9, 1.1, 30.0, 1.5
 
 #: The rule of each verdict, as docs/model.md ("How a verdict is reached") states it.
 CLAIM_RULES: dict[str, str] = {
@@ -128,6 +137,13 @@ CLAIM_RULES: dict[str, str] = {
     "C8": (f"on every changed plant the self-tuning fuzzy PI must be {_ROBUST}; it does not "
            f"hold if any change fails; with every change robust it holds when it also settles "
            f"faster than both paper PIDs on each, else under stated conditions"),
+    "C9": (f"on each sine of the tracking study whose peak speed is within the valve's "
+           f"no-load speed at the full command (K_o): the amplitude ratio of the first "
+           f"harmonics is in [{TRACK_RATIO_MIN:g}, {TRACK_RATIO_MAX:g}] and the phase lag at "
+           f"most {TRACK_LAG_MAX_DEG:g}° (it follows), and the RMS error at most "
+           f"{TRACK_RMS_VS_BEST:g} x the best design's, the baselines included (it is "
+           f"competitive); holds when both are true on every such sine, does not hold when "
+           f"it follows none, else holds under stated conditions (named)"),
 }
 
 #: A value of the structured data behind a verdict (JSON: number, text, true/false, list).

@@ -30,6 +30,7 @@ from ..plots.study_figures import (
     first_saturation,
     save,
     step_figure,
+    tracking_figure,
 )
 from .paper_study import DESIGN_COLOURS, PlantStudy, StudyConfig
 
@@ -38,12 +39,14 @@ if TYPE_CHECKING:
 
     from ..fuzzy import FuzzySystem, Variable
 
-__all__ = ["FIGURE_STEMS", "NEAR_FRACTION", "OVERSHOOT_LIMIT_PCT", "PlannedFigure",
-           "fig3_captions", "figure_files", "figure_plan", "study_figures"]
+__all__ = ["FIGURE_STEMS", "NEAR_FRACTION", "OVERSHOOT_LIMIT_PCT", "TRACKING_STEMS",
+           "PlannedFigure", "fig3_captions", "figure_files", "figure_plan", "study_figures"]
 
 #: The figures of one plant, without the ``_{plant}`` suffix, in the report's order.
 FIGURE_STEMS: tuple[str, ...] = ("fig4", "fig5", "fig6", "fig7", "fig8",
                                  "fig8_delay_overshoot", "fig8_delay_settling", "robustness")
+#: The tracking study's figures of one plant (when it runs), after :data:`FIGURE_STEMS`.
+TRACKING_STEMS: tuple[str, ...] = ("tracking_sine", "tracking_move", "tracking_load")
 
 #: Curves of Figs. 4 and 7 closer than this fraction of the step over the whole run are
 #: marked as coinciding (2 %: the settling band; closer than that they look like one line).
@@ -130,9 +133,11 @@ def fig3_captions(du: FuzzySystem, alpha: FuzzySystem) -> dict[str, str]:
     }
 
 
-def figure_files(plant: str, out: Path) -> list[Path]:
-    """Every file :func:`study_figures` writes for ``plant`` into ``out``, in order."""
-    return [Path(out) / f"{s}_{plant}.{fmt}" for s in FIGURE_STEMS for fmt in ("png", "svg")]
+def figure_files(plant: str, out: Path, *, tracking: bool = False) -> list[Path]:
+    """Every file :func:`study_figures` writes for ``plant`` into ``out``, in order (with
+    the tracking study's when it ran)."""
+    stems = FIGURE_STEMS + (TRACKING_STEMS if tracking else ())
+    return [Path(out) / f"{s}_{plant}.{fmt}" for s in stems for fmt in ("png", "svg")]
 
 
 def _curve(study: PlantStudy, key: str, *, label: str | None = None) -> Curve:
@@ -255,6 +260,66 @@ def figure_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:
            f"whole run): {', '.join(unsettled)}." if unsettled else ""),
         lambda: step_figure(curves, f"Changed plants ({p}): self-tuning fuzzy PI, gains fixed",
                             y0=y0))
+    if study.tracking is not None:
+        plan.extend(_tracking_plan(study, cfg))
+    return plan
+
+
+def _tracking_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:
+    """The tracking study's figures (:data:`TRACKING_STEMS`)."""
+    tr = study.tracking
+    tc = cfg.tracking
+    assert tr is not None and tc is not None
+    p = study.plant
+    cases = {c.key: c for c in study.tracking_cases}
+
+    def curves(experiment: str) -> list[Curve]:
+        out = []
+        for key in tr.keys:
+            r = tr.runs.get(f"{key}/{experiment}")
+            if r is not None:
+                c = cases[key]
+                out.append(Curve(key, c.label, r.t, r.y, r.u, r.alpha, r.r, colour=c.colour))
+        return out
+
+    def missing(experiment: str) -> str:
+        gone = [cases[k].label for k in tr.keys if f"{k}/{experiment}" not in tr.runs]
+        return f" Diverged (not drawn): {', '.join(gone)}." if gone else ""
+
+    plan: list[PlannedFigure] = []
+    f_sine = 1.0 if 1.0 in tc.sine_frequencies else tc.sine_frequencies[0]
+    sine = curves(f"sine_{f_sine:g}")
+    speed = tc.sine_amplitude * 2 * math.pi * f_sine
+    sat = (f" Its peak speed {speed:.3g} m/s is beyond the valve's {cfg.params.velocity_gain:.3g}"
+           f" m/s at the full command, so every design saturates." if speed >
+           cfg.params.velocity_gain else "")
+    plan.append(PlannedFigure(
+        f"tracking_sine_{p}",
+        f"Tracking, {p} plant: a sine of {tc.sine_amplitude * 1e3:g} mm at {f_sine:g} Hz from "
+        f"mid-stroke, every design with the gains of the step study; below, the tracking "
+        f"error.{sat}{missing(f'sine_{f_sine:g}')}",
+        lambda: tracking_figure(sine, f"Sine tracking, {tc.sine_amplitude * 1e3:g} mm at "
+                                      f"{f_sine:g} Hz ({p} plant)")))
+    mv = tc.move
+    t_end = mv.time + mv.duration
+    move = curves("move")
+    plan.append(PlannedFigure(
+        f"tracking_move_{p}",
+        f"Jerk-limited move, {p} plant: {mv.distance * 1e3:g} mm with at most "
+        f"{mv.v_max:g} m/s, {mv.a_max:g} m/s² and {mv.j_max:g} m/s³ from {mv.time:g} s; "
+        f"the move ends at {t_end:.3g} s (dotted). Below, the following error.{missing('move')}",
+        lambda: tracking_figure(move, f"S-curve move of {mv.distance * 1e3:g} mm ({p} plant)",
+                                mark=t_end, mark_label="end of the move")))
+    load = curves("load")
+    plan.append(PlannedFigure(
+        f"tracking_load_{p}",
+        f"Load-force step, {p} plant: {tr.load_force / 1e3:.3g} kN ({tc.load_fraction:.0%} of "
+        f"the force at supply pressure on the piston area) opposing extension at "
+        f"{tc.load_time:g} s, the reference at rest. Below, the deviation from the position "
+        f"at the step.{missing('load')}",
+        lambda: tracking_figure(load, f"Load-force step of {tr.load_force / 1e3:.3g} kN "
+                                      f"({p} plant)", what="deviation", mark=tc.load_time,
+                                mark_label="load step")))
     return plan
 
 

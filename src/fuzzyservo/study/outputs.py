@@ -17,7 +17,7 @@ from .claims import CLAIM_SHORT, HOLDS, NOT_HOLDS, PARTLY, Claim, summarize
 from .figures import fig3_captions, study_figures
 from .paper_study import TUNED_AS, PlantStudy, StudyConfig, design_name
 
-__all__ = ["METRIC_COLUMNS", "trace_files", "write_outputs"]
+__all__ = ["METRIC_COLUMNS", "TRACKING_COLUMNS", "trace_files", "write_outputs"]
 
 #: Columns of metrics.csv and of the report's metrics tables, with units. ``u_max_after`` is
 #: the peak |u| after C3's initial transient, ``u_rms`` the RMS of u over the run (C3;
@@ -27,6 +27,15 @@ METRIC_COLUMNS: tuple[tuple[str, str], ...] = (
     ("steady_state_error", "m"), ("iae", "m s"), ("itae", "m s^2"), ("u_max", "-"),
     ("u_max_after", "-"), ("u_rms", "-"),
 )
+
+#: The tracking study's metrics by experiment, with units (tracking.csv, the report).
+TRACKING_COLUMNS: dict[str, tuple[tuple[str, str], ...]] = {
+    "sine": (("rms_error", "m"), ("max_error", "m"), ("amplitude_ratio", "-"),
+             ("phase_lag", "deg")),
+    "move": (("max_following_error", "m"), ("overshoot", "%"), ("settling_time", "s"),
+             ("final_error", "m")),
+    "load": (("max_deviation", "m"), ("recovery_time", "s"), ("remaining", "m")),
+}
 
 #: The verdict grid's short forms.
 _SHORT_VERDICT = {HOLDS: "holds", NOT_HOLDS: "does not hold", PARTLY: "partly"}
@@ -179,6 +188,8 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                         _fmt_gains(st.gains, exact=True), repr(float(s.delayed.delay))]
                        + [repr(float(s.delayed_metrics[n])) for n, _ in METRIC_COLUMNS])
     written.append(metrics_csv)
+    if any(s.tracking is not None for s in studies):
+        written.append(_write_tracking_csv(out / "tracking.csv", studies))
 
     claims = [c.as_dict() for s in studies for c in s.claims]
     claims_json = write_text_atomic(out / "claims.json", strict_json(claims, indent=2) + "\n")
@@ -198,6 +209,7 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                         math.isnan(s.delay_margins[c.key]) else "fails without delay",
                         ", ".join(f"{d * 1e3:.3g}" for d in s.delay_failures[c.key]) or "none"]
                        for c in s.cases]
+        figs = study_figures(s, cfg, out, written, reuse=s.plant in figures_reused)
         sections.append(Section(
             f"Results on the {s.plant} plant",
             paragraphs=[f"Step of {cfg.step * 1e3:g} mm from mid-stroke, {cfg.duration:g} s, "
@@ -207,8 +219,10 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                     Table(["controller", "settles at every delay up to [ms]",
                            "fails (no 2 % settling in the run) at [ms]"], margin_rows,
                           caption="Delay sweep, gains fixed")],
-            figures=study_figures(s, cfg, out, written,
-                                  reuse=s.plant in figures_reused)))
+            figures=[f for f in figs if not f.png.name.startswith("tracking_")]))
+        if s.tracking is not None:
+            sections.append(_tracking_section(
+                s, cfg, [f for f in figs if f.png.name.startswith("tracking_")]))
     captions = fig3_captions(du_system(), alpha_system())
     sections.append(Section(
         "Fig. 3: membership functions, rule tables and control surfaces",
@@ -238,3 +252,98 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
     written.append(report)
     return {"report": report, "metrics": metrics_csv, "claims": claims_json}
 
+
+
+def _tracking_rows(s: PlantStudy) -> list[tuple[str, str, str, str, str, float]]:
+    """(controller key, label, experiment, metric, unit, value) of a plant's tracking study:
+    NaN for a run that diverged (and for metrics a run never reached)."""
+    tr = s.tracking
+    assert tr is not None
+    labels = {c.key: c.label for c in s.tracking_cases}
+    rows = []
+    for key in tr.keys:
+        blocks = [(f"sine {f} Hz", "sine", m) for f, m in tr.sine[key].items()]
+        blocks += [("move", "move", tr.move[key]), ("load step", "load", tr.load[key])]
+        for experiment, kind, m in blocks:
+            for name, unit in TRACKING_COLUMNS[kind]:
+                rows.append((key, labels[key], experiment, name, unit,
+                             float(m.get(name, math.nan))))
+    return rows
+
+
+def _write_tracking_csv(path: Path, studies: Sequence[PlantStudy]) -> Path:
+    """tracking.csv: one row a metric of a design in an experiment on a plant (long format:
+    its experiments have different metrics), every digit."""
+    with atomic_write(path) as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(["plant", "controller", "label", "experiment", "metric", "unit", "value",
+                    "gains"])
+        for s in studies:
+            if s.tracking is None:
+                continue
+            gains = {c.key: _fmt_gains(c.gains, exact=True) for c in s.tracking_cases}
+            for key, label, experiment, name, unit, v in _tracking_rows(s):
+                w.writerow([s.plant, key, label, experiment, name, unit, repr(v), gains[key]])
+    return path
+
+
+def _tracking_section(s: PlantStudy, cfg: StudyConfig, figures: list[Figure]) -> Section:
+    """The report's section of a plant's tracking study: one table per experiment, and its
+    ``figures``."""
+    tr = s.tracking
+    tc = cfg.tracking
+    assert tr is not None and tc is not None
+    labels = {c.key: c.label for c in s.tracking_cases}
+
+    def val(m: Mapping[str, float], name: str, scale: float = 1.0) -> object:
+        if m.get("diverged"):
+            return "diverged"
+        v = m.get(name, math.nan)
+        return "never" if math.isnan(v) else v * scale
+
+    sine_head = ["controller"]
+    for f in tc.sine_frequencies:
+        sine_head += [f"{f:g} Hz: RMS error [mm]", f"{f:g} Hz: max error [mm]",
+                      f"{f:g} Hz: amplitude ratio [-]", f"{f:g} Hz: phase lag [deg]"]
+    sine_rows = []
+    for key in tr.keys:
+        row: list[object] = [labels[key]]
+        for f in tc.sine_frequencies:
+            m = tr.sine[key][f"{f:g}"]
+            row += [val(m, "rms_error", 1e3), val(m, "max_error", 1e3),
+                    val(m, "amplitude_ratio"), val(m, "phase_lag")]
+        sine_rows.append(row)
+    move_rows = [[labels[k], val(tr.move[k], "max_following_error", 1e3),
+                  val(tr.move[k], "overshoot"), val(tr.move[k], "settling_time"),
+                  val(tr.move[k], "final_error", 1e3)] for k in tr.keys]
+    load_rows = [[labels[k], val(tr.load[k], "max_deviation", 1e3),
+                  val(tr.load[k], "recovery_time"), val(tr.load[k], "remaining", 1e3)]
+                 for k in tr.keys]
+    mv = tc.move
+    speed = [f"{f:g} Hz: {tc.sine_amplitude * 2 * math.pi * f:.3g} m/s"
+             for f in tc.sine_frequencies]
+    return Section(
+        f"Tracking and load disturbances on the {s.plant} plant",
+        paragraphs=[
+            f"Every design of the study with its step-study gains, and the baselines tuned "
+            f"like the PIDs (ITAE on the {cfg.step * 1e3:g} mm step, <= 10 % overshoot), from "
+            f"rest at mid-stroke. Sines of {tc.sine_amplitude * 1e3:g} mm, measured over their "
+            f"last {tc.sine_periods} periods; their peak speeds ({'; '.join(speed)}) against "
+            f"the valve's {cfg.params.velocity_gain:.3g} m/s at the full command. Amplitude "
+            f"ratio and lag are those of the first harmonics of y and r.",
+            f"The S-curve move: {mv.distance * 1e3:g} mm, at most {mv.v_max:g} m/s, "
+            f"{mv.a_max:g} m/s², {mv.j_max:g} m/s³, from {mv.time:g} s to "
+            f"{mv.time + mv.duration:.4g} s; settling into ±{tc.band:.0%} of the move after "
+            f"its end. The load step: {tr.load_force / 1e3:.4g} kN opposing extension at "
+            f"{tc.load_time:g} s; recovery into {tc.band:.0%} of the largest deviation; "
+            f"remaining: the mean deviation over the last 0.5 s. tracking.csv has every "
+            f"digit; docs/model.md, \"Tracking and load disturbances\", says why these "
+            f"experiments."],
+        tables=[Table(sine_head, sine_rows, caption="Sine tracking"),
+                Table(["controller", "max following error [mm]", "overshoot [%]",
+                       "settling after the move [s]", "final error [mm]"], move_rows,
+                      caption="Jerk-limited move"),
+                Table(["controller", "largest deviation [mm]", "recovery time [s]",
+                       "remaining deviation [mm]"], load_rows,
+                      caption="Load-force step at rest")],
+        figures=figures)

@@ -41,6 +41,13 @@ from .claims import (
     evaluate_claims,
     transient_window,
 )
+from .tracking import (
+    BASELINE_DESIGNS,
+    TrackingConfig,
+    TrackingStudy,
+    run_tracking_study,
+    tracking_claim,
+)
 
 __all__ = [
     "CONTROLLER_KEYS",
@@ -48,6 +55,7 @@ __all__ = [
     "ControllerCase",
     "PlantStudy",
     "StudyConfig",
+    "TRACKING_KEYS",
     "TUNED_AS",
     "TUNED_DESIGNS",
     "design_name",
@@ -59,6 +67,9 @@ __all__ = [
 #: The study's controllers, in legend order.
 CONTROLLER_KEYS: tuple[str, ...] = (
     "pid_paper_1", "pid_paper_2", "pid_tuned", "pid2_tuned", "fpi", "stfpi", "stfpi_10")
+
+#: The designs of the tracking study, in legend order: the study's, then the baselines.
+TRACKING_KEYS: tuple[str, ...] = (*CONTROLLER_KEYS, *BASELINE_DESIGNS)
 
 #: Tuned designs the study loads: study key -> (gain-file name, legend label).
 #: The fuzzy PI and the self-tuning fuzzy PI of Figs. 4-8 are tuned for the behaviour the
@@ -129,6 +140,9 @@ class StudyConfig:
         The value those systems were read with where no rule fires (``reproduce
         --no-rule-value``; recorded in each run's :class:`~fuzzyservo.run.RunSpec`); None:
         each file's own.
+    tracking : TrackingConfig or None
+        The tracking and disturbance study (claim C9) with these experiments; None: not run
+        (``fuzzyservo reproduce`` runs it with the defaults of :class:`TrackingConfig`).
     """
 
     params: ServoParams
@@ -144,6 +158,7 @@ class StudyConfig:
     pid_filter: float = 100.0
     systems: tuple[tuple[str, Any], ...] = ()
     no_rule_value: float | None = None
+    tracking: TrackingConfig | None = None
 
     def __post_init__(self) -> None:
         for role, _ in self.systems:
@@ -309,6 +324,8 @@ class PlantStudy:
     variant_metrics: dict[str, dict[str, dict[str, float]]]
     variant_runs: dict[str, SimResult]  # self-tuning fuzzy PI on each changed plant
     claims: list[Claim] = field(default_factory=list)
+    tracking: TrackingStudy | None = None  # the tracking and disturbance study, if run
+    tracking_cases: tuple[ControllerCase, ...] = ()  # its designs: cases, then baselines
 
 
 def _failed(settling: float, diverged: bool) -> bool:
@@ -404,8 +421,40 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
         stfpi_overshoot_limit=stfpi_overshoot_limit, delay_sweep=tuple(delays),
         delayed_trace=_trace(delayed),
         variant_traces={name: _trace(r) for name, r in var_runs.items()})
+    tracking: TrackingStudy | None = None
+    t_cases: list[ControllerCase] = []
+    if cfg.tracking is not None:
+        t_cases = [*cases, *baseline_cases(tuned)]
+        by_key = {c.key: c for c in t_cases}
+        tracking = run_tracking_study(
+            kind, lambda key: cfg.run_spec(kind, by_key[key]), [c.key for c in t_cases],
+            cfg.tracking, params=cfg.params, systems=systems, tick=tick)
+        claims.append(tracking_claim(tracking, {c.key: c.label for c in t_cases},
+                                     subject="stfpi", capacity=cfg.params.velocity_gain,
+                                     tcfg=cfg.tracking))
     return PlantStudy(plant=kind, cases=tuple(cases), runs=runs, metrics=metrics,
                       delayed=delayed, delayed_metrics=delayed_metrics, delays=delays,
                       sweep=sweep, delay_margins=margins, delay_failures=failures,
                       variant_metrics=var_metrics,
-                      variant_runs=var_runs, claims=claims)
+                      variant_runs=var_runs, claims=claims, tracking=tracking,
+                      tracking_cases=tuple(t_cases))
+
+
+def baseline_cases(tuned: Mapping[str, Design]) -> list[ControllerCase]:
+    """The baselines of the tracking study (:data:`~fuzzyservo.study.tracking.BASELINE_DESIGNS`)
+    from their tuned designs in ``tuned`` (by gain-file name).
+
+    Raises
+    ------
+    ParameterError
+        A baseline's tuned gains are missing.
+    """
+    out = []
+    for key, (name, label) in BASELINE_DESIGNS.items():
+        if name not in tuned:
+            raise ParameterError(f"tuned gains for the baseline {name!r} are missing (the "
+                                 f"tracking study compares every baseline)")
+        kind, gains = tuned[name]
+        full = controller_kind(kind).check_gains(gains, where=f"tuned design {name}: ")
+        out.append(ControllerCase(key, label, kind, full))
+    return out

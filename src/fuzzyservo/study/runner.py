@@ -70,6 +70,7 @@ from .figures import figure_files
 from .outputs import trace_files, write_outputs
 from .paper_study import TUNED_DESIGNS, PlantStudy, StudyConfig, run_plant_study
 from .reuse import Digests, reusable
+from .tracking import BASELINE_DESIGNS
 
 __all__ = ["GAIN_FILES", "MANIFEST", "PLANTS", "CacheWarning", "default_gains_dir",
            "folder_status", "load_tuned", "reproduce", "retune",
@@ -83,7 +84,8 @@ class CacheWarning(UserWarning):
     """A cache entry was ignored (corrupt, truncated, foreign or stale) and recomputed."""
 
 #: Gain files of one plant, ``{plant}-{name}.toml``: the names :data:`TUNED_DESIGNS` uses.
-GAIN_FILES: tuple[str, ...] = ("pid", "pid2", "fpi", "stfpi", "fpi-os0", "stfpi-os0")
+GAIN_FILES: tuple[str, ...] = ("pid", "pid2", "fpi", "stfpi", "fpi-os0", "stfpi-os0",
+                               *(name for name, _ in BASELINE_DESIGNS.values()))
 
 PLANTS: tuple[str, ...] = ("linear", "nonlinear")
 
@@ -130,9 +132,11 @@ def study_jobs(plant: str, set_name: str,
         return TuningSetup(controller=controller, plant=plant, param_set=set_name,
                            overrides=overrides, **kw)
 
+    baselines = [(name, job(name, systems=systems if controller_kind(name).systems else ()))
+                 for name, _ in BASELINE_DESIGNS.values()]
     return [("pid", job("pid")), ("pid2", job("pid2")),
             ("stfpi", job("stfpi", systems=systems)),
-            ("stfpi-os0", job("stfpi", constraints=no_os, systems=systems))]
+            ("stfpi-os0", job("stfpi", constraints=no_os, systems=systems)), *baselines]
 
 
 def retune(plant: str, params: Any, set_name: str, gains_dir: Path, *,
@@ -208,6 +212,8 @@ def _matplotlib_version() -> str:
 def _settings(cfg: StudyConfig) -> dict[str, Any]:
     out = {f.name: getattr(cfg, f.name) for f in dataclasses.fields(cfg)
            if f.name not in ("params", "systems", "no_rule_value")}
+    out["tracking"] = (dataclasses.asdict(cfg.tracking) if cfg.tracking is not None
+                       else None)
     if cfg.systems:  # a system by its values' digest (absent: the paper's, as before)
         out["systems"] = {role: s.digest for role, s in cfg.systems}
         out["no_rule_value"] = cfg.no_rule_value
@@ -467,7 +473,8 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
     figure_keys.update({plant: _figure_key(plant, version, cfg, _gain_paths(plant, gains_src))
                         for plant in plants})
     figure_groups = {"fig3": fig3_files(out, FIG3_FORMATS)}
-    figure_groups.update({plant: figure_files(plant, out) for plant in plants})
+    figure_groups.update({plant: figure_files(plant, out, tracking=cfg.tracking is not None)
+                          for plant in plants})
     kept = {g for g, files in figure_groups.items()
             if not force and reusable(before, out, g, figure_keys[g], files, digest=digests)}
     # a plant's traces are a function of its study, which its cache key names
