@@ -6,14 +6,17 @@ from .batch import simulate_batch
 from .closed_loop import DEFAULT_DELAY, LinearPlant, NonlinearPlant, Plant, simulate
 from .open_loop import OpenLoopResult, command_samples, simulate_open_loop
 from .references import (
+    Chirp,
     MultiStep,
     Ramp,
     Reference,
+    SCurve,
     Sine,
     Step,
     Trapezoid,
     UserReference,
     parse_reference,
+    reference_rates,
     sample_reference,
 )
 from .result import BatchResult, SimResult
@@ -24,6 +27,7 @@ __all__ = [
     "METRIC_NAMES",
     "N_METRICS",
     "BatchResult",
+    "Chirp",
     "LinearPlant",
     "MultiStep",
     "NonlinearPlant",
@@ -31,6 +35,7 @@ __all__ = [
     "Plant",
     "Ramp",
     "Reference",
+    "SCurve",
     "SimResult",
     "Sine",
     "Step",
@@ -38,6 +43,7 @@ __all__ = [
     "UserReference",
     "command_samples",
     "parse_reference",
+    "reference_rates",
     "sample_reference",
     "simulate",
     "simulate_batch",

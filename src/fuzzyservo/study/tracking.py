@@ -157,7 +157,7 @@ def run_tracking_study(kind: str, base: Callable[[str], RunSpec], keys: Sequence
     ``key`` (its controller, gains, plant and sample time; the study's ``run_spec``), whose
     reference, duration and load force each experiment replaces. Runs named in ``keep``
     (``sine_<f>``, ``move``, ``load``) are kept for the figures."""
-    from ..sim import SimulationDivergedError
+    from ..errors import SimulationDivergedError
 
     force = tcfg.load_fraction * params.supply.pressure * params.cylinder.piston_area
     sine: dict[str, dict[str, dict[str, float]]] = {}
