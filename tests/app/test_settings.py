@@ -169,3 +169,31 @@ def test_another_host_is_served_with_a_warning() -> None:
     finally:
         proc.terminate()
         proc.wait(20)
+
+
+@pytest.mark.parametrize("plant", ["linear", "nonlinear"])
+def test_the_load_force_is_in_the_run_and_its_command(plant: str) -> None:
+    """The page's load force is the run's field: its command line carries it, reads back to
+    the same run, and prints the page's metrics."""
+    from fuzzyservo.run import RunSpec
+
+    s = PageSettings(controller="pi", plant=plant, gains=(("kp", 10.0), ("ki", 2.0)),
+                     load_force="step:1500:0.5", duration=1.0)
+    assert "--load-force=step:1500:0.5" in s.argv()
+    assert RunSpec.from_argv(s.argv()) == s.run
+    run = run_page(s)
+    status, out, err = printed(shlex.split(s.command())[1:])
+    assert status == 0, err
+    assert {ln.split()[0]: ln.split()[1] for ln in out.splitlines()} == as_printed(run.metrics)
+    plain = run_page(s.replace(load_force=""))
+    assert plain.metrics != run.metrics
+
+
+def test_the_page_reads_its_load_force_box(tmp_path: Path) -> None:
+    """The page's text box is the run's load force (a page built without a browser)."""
+    from fuzzyservo.app.page import ServoPage
+
+    page = ServoPage(workdir=tmp_path)
+    page.w_load.value = " step:-300:0.2 "
+    assert page.read_settings().load_force == "step:-300:0.2"
+    assert "--load-force=step:-300:0.2" in page.w_command.value

@@ -54,6 +54,7 @@ def run_specs(draw: st.DrawFn) -> RunSpec:
         reference=draw(st.sampled_from(["step:0.1", "sine:0.05:0.5", "multistep:0=0.05,2=0.1"])),
         duration=draw(_POSITIVE), ts=draw(_POSITIVE), delay=draw(_FLOATS),
         noise_std=noise, seed=draw(st.integers(0, 2**31)), start=draw(_FLOATS),
+        load_force=draw(st.sampled_from(["", "step:500:0.1", "pwl:0:0,1:-20", "-x.csv"])),
         substep=draw(st.just(DEFAULT_SUBSTEP) | _POSITIVE))
 
 
@@ -75,6 +76,7 @@ def test_the_simulate_command_reads_the_same_run(spec: RunSpec) -> None:
         spec.duration, spec.ts, spec.start, spec.substep)
     assert float(args.delay or 0.0) == spec.delay
     assert (args.noise_std, args.seed) == (spec.noise_std, spec.seed)
+    assert args.load_force == spec.load_force
     for name, value in spec.options:
         assert getattr(args, name) == value
     assert (args.param_set or "paper") == spec.param_set

@@ -285,6 +285,9 @@ class TuningSetup:
         if run.noise_std != 0.0:
             raise ParameterError("the tuner tunes without measurement noise: set the noise "
                                  "to 0 (a robust tuning takes noise from its sweep spec)")
+        if run.load_force:
+            raise ParameterError(f"the tuner tunes without a load-force disturbance: clear "
+                                 f"the load force ({run.load_force!r})")
         if run.substep != DEFAULT_SUBSTEP:
             raise ParameterError(f"the tuner runs the nonlinear plant at the default RK4 step "
                                  f"bound ({DEFAULT_SUBSTEP:g} s): drop the substep "

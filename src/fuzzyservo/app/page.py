@@ -319,6 +319,10 @@ class ServoPage:
         self.w_spec = pn.widgets.TextInput(name="reference spec (offset from the start) [m, s]",
                                            value=self.settings.reference,
                                            css_classes=["fs-spec"])
+        self.w_load = pn.widgets.TextInput(
+            name="load force [N, s] (> 0 opposes extension)", value=self.settings.load_force,
+            placeholder="none; step:F:T, pwl:T0:F0,T1:F1,... or FILE.csv",
+            css_classes=["fs-load"])
         self.w_duration = pn.widgets.FloatInput(name="duration [s]", value=5.0, width=110,
                                                 css_classes=["fs-duration"])
         self.w_ts = pn.widgets.FloatInput(name="sample time [ms]", value=1.0, width=110,
@@ -346,6 +350,7 @@ class ServoPage:
         self.w_shape.param.watch(self._shape_changed, "value")
         self.w_step.param.watch(self._step_moved, "value")
         self.w_spec.param.watch(self._changed, "value")
+        self.w_load.param.watch(self._changed, "value")
 
     def _reset_physical(self) -> None:
         """Show the parameter set's values (and no delay, no noise)."""
@@ -503,7 +508,8 @@ class ServoPage:
             controller=self.w_controller.value, gains=gains, plant=self.w_plant.value,
             param_set=self.w_set.value, overrides=tuple(overrides), delay=delay,
             noise_std=noise, seed=int(self.w_seed.value or 0),
-            reference=str(self.w_spec.value or "").strip(), duration=num(self.w_duration),
+            reference=str(self.w_spec.value or "").strip(),
+            load_force=str(self.w_load.value or "").strip(), duration=num(self.w_duration),
             ts=num(self.w_ts, -3), start=num(self.w_start), options=tuple(options),
             systems=systems,
             no_rule_value=(None if self.w_no_rule.value is None or not systems
@@ -1076,6 +1082,7 @@ class ServoPage:
             pn.pane.Markdown("### Plant"), pn.Row(self.w_plant, self.w_set, width=360),
             self.phys_column, self.w_seed,
             pn.pane.Markdown("### Reference and run"), self.w_shape, self.w_step, self.w_spec,
+            self.w_load,
             pn.Row(self.w_duration, self.w_ts, self.w_start),
             width=380, styles={"overflow-y": "auto", "overflow-x": "hidden"})
         response = pn.Column(

@@ -95,6 +95,13 @@ def register(subparsers: Any) -> None:
     cl.add_argument("--noise-std", type=float, default=0.0, metavar="M",
                     help="measurement noise standard deviation [m] (default 0)")
     cl.add_argument("--seed", type=int, default=0, help="seed of the noise generator")
+    cl.add_argument("--load-force", default=run_default("load_force"), metavar="SPEC",
+                    help="load-force disturbance [N] added to the set's load.external_force, "
+                         "> 0 opposing extension: step:F[:T] (F from T [s] on, 0 before), "
+                         "pwl:T0:F0,T1:F1,... (piecewise linear, held at both ends) or "
+                         "FILE.csv (columns t, F); sampled at the sample instants and held "
+                         "over each sample; on every plant (the linear ones by "
+                         "superposition; docs/model.md) (default: none)")
     ol = parser.add_argument_group("open loop")
     ol.add_argument("--open-loop", action="store_true",
                     help="apply a constant valve command instead of a controller")
@@ -291,7 +298,7 @@ def closed_loop(args: argparse.Namespace) -> ClosedLoop:
         no_rule_value=args.no_rule_value, plant=run_.plant, param_set=run_.param_set,
         overrides=run_.overrides, reference=run_.reference, duration=run_.duration,
         ts=choice.ts, delay=run_.delay, noise_std=args.noise_std, seed=args.seed,
-        start=run_.start, substep=args.substep)
+        load_force=args.load_force, start=run_.start, substep=args.substep)
     built = spec.build()
     choice.systems = built.systems
     notes = _system_notes(built, choice.tuned)
@@ -320,9 +327,9 @@ def run(args: argparse.Namespace) -> int:
         if not (math.isfinite(args.command) and -1.0 <= args.command <= 1.0):
             raise ParameterError(f"--command must be in [-1, 1] (fraction of rated input), "
                                  f"got {args.command!r}")
-        if args.noise_std or args.reference is not None:
-            raise InputError("--noise-std and --reference belong to the closed loop; the open "
-                             "loop applies --command")
+        if args.noise_std or args.reference is not None or args.load_force:
+            raise InputError("--noise-std, --reference and --load-force belong to the closed "
+                             "loop; the open loop applies --command")
         ts = run_default("ts") if args.ts is None else args.ts
         run_ = _settings(args, None, ts, "")
         plant = build_plant(run_.plant, run_.params, run_.start * run_.params.cylinder.stroke,

@@ -4,6 +4,17 @@
 
 K_o = K_a K_tr C_v / A_f (the paper's K_tr C_v A_f / K_v is dimensionally wrong, docs/model.md);
 with K_a = I_rated (u is a fraction of rated input) and K_tr = 1 m/m, K_o = Q_rated / A_f.
+
+The paper gives eq. (8) no load-force path. :meth:`LinearServo.force_input` adds Merritt's
+(Hydraulic Control Systems, 1967, ch. 6) standard one, the load force F (> 0 opposing
+extension) entering the hydraulic second order beside the valve's flow:
+
+    X(s) = [K_o Q(s) - (K_ce/A²)(1 + V_t s/(4 β_e K_ce)) F(s)] / [s (s²/ω₀² + 2δ s/ω₀ + 1)]
+
+with K_ce/A² = K_f, the small-signal model's steady velocity lost per newton
+(``Linearization.load_compliance``), and V_t/(4 β_e) = A²/(ω₀² M) from Merritt's
+ω_h² = 4 β_e A²/(V_t M) with ω_h = ω₀, so the force's lead time constant is
+V_t/(4 β_e K_ce) = 1/(ω₀² M K_f) (docs/model.md, "Load force on the linear models").
 """
 
 from __future__ import annotations
@@ -32,6 +43,9 @@ class LinearServo:
     omega_v: float  #: valve natural frequency ω_v [rad/s]
     zeta_v: float  #: valve damping ratio ζ_v [1]
     tau_v: float = 0.0  #: valve first-order time constant τ_v; 0 = absent [s]
+    #: steady velocity lost per newton of load force K_f = K_ce/A² [m/(s·N)]
+    load_compliance: float = 0.0
+    mass: float = 0.0  #: moving mass M of the force path; 0 = no force input [kg]
 
     def __post_init__(self) -> None:
         for name in ("K_o", "omega_0", "damping", "omega_v", "zeta_v"):
@@ -41,20 +55,27 @@ class LinearServo:
                                      f"got {value!r}")
         if not (math.isfinite(self.tau_v) and self.tau_v >= 0.0):
             raise ParameterError(f"LinearServo.tau_v must be >= 0 s, got {self.tau_v!r}")
+        for name in ("load_compliance", "mass"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ParameterError(f"LinearServo.{name} must be a finite number >= 0, "
+                                     f"got {value!r}")
 
     @classmethod
     def from_params(cls, params: ServoParams, lin: Linearization) -> LinearServo:
         """Eq. (8) as the paper writes it: K_o = Q_rated/A_f (large signal), ω₀, δ from ``lin``."""
         v = params.valve
         return cls(K_o=params.velocity_gain, omega_0=lin.omega_0, damping=lin.damping,
-                   omega_v=v.omega_v, zeta_v=v.zeta_v, tau_v=v.tau_v)
+                   omega_v=v.omega_v, zeta_v=v.zeta_v, tau_v=v.tau_v,
+                   load_compliance=lin.load_compliance, mass=params.load.mass)
 
     @classmethod
     def from_linearization(cls, lin: Linearization) -> LinearServo:
         """Eq. (8) with every coefficient from the linearisation, K_o its small-signal gain."""
         v = lin.params.valve
         return cls(K_o=lin.velocity_gain, omega_0=lin.omega_0, damping=lin.damping,
-                   omega_v=v.omega_v, zeta_v=v.zeta_v, tau_v=v.tau_v)
+                   omega_v=v.omega_v, zeta_v=v.zeta_v, tau_v=v.tau_v,
+                   load_compliance=lin.load_compliance, mass=lin.params.load.mass)
 
     @property
     def state_names(self) -> tuple[str, ...]:
@@ -106,6 +127,36 @@ class LinearServo:
         c = np.zeros((1, n))
         c[0, iv + 2] = 1.0
         return a, b, c, np.zeros((1, 1))
+
+    @property
+    def has_force_input(self) -> bool:
+        """Whether the model has a load-force path (a mass is given)."""
+        return self.mass > 0.0
+
+    def force_input(self) -> FloatArray:
+        """The load-force input vector E (n,) of :meth:`state_space` [state unit/s per N]:
+        dx/dt = A x + B u + E F, F > 0 opposing extension.
+
+        Merritt's force path (module docstring) in the observer form of the hydraulic
+        second order: v' = a - F/M and a' = ω₀²(K_o q - v) - 2δω₀ a + (2δω₀/M - ω₀² K_f) F,
+        so V/F = -(s/M + ω₀² K_f)/(s² + 2δω₀ s + ω₀²); at high frequency the force
+        decelerates the mass (-F/M), in steady state the piston creeps at -K_f F. With a
+        force, the state ``a`` is the acceleration the oil gives, v' + F/M.
+
+        Raises
+        ------
+        ParameterError
+            The model has no force path (``mass`` 0).
+        """
+        if not self.has_force_input:
+            raise ParameterError("this LinearServo has no load-force path: give mass > 0 "
+                                 "(LinearServo.from_params does)")
+        w0, d, m = self.omega_0, self.damping, self.mass
+        o = 1 if self.tau_v > 0.0 else 0
+        e = np.zeros(o + 5)
+        e[o + 2] = -1.0 / m
+        e[o + 3] = 2.0 * d * w0 / m - w0**2 * self.load_compliance
+        return e
 
     def discretize(self, dt: float, delay: float = 0.0) -> DiscreteModel:
         """Zero-order-hold discretisation of :meth:`state_space` at sample time ``dt`` [s],

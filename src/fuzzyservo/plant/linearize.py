@@ -14,7 +14,7 @@ v = 0 and the slope of its tanh regularisation is a numerical artefact, not a da
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import optimize
@@ -25,6 +25,7 @@ from .dense import eigvals, modulus, solve
 from .nonlinear import (
     N_STATE,
     P_AF,
+    P_FEXT,
     P_M,
     S_LAG,
     S_PF,
@@ -70,6 +71,11 @@ class Linearization:
     damping: float  #: hydraulic damping ratio δ of that pair [1]
     velocity_gain: float  #: steady piston velocity per unit command [m/s]
     params: ServoParams  #: the parameters linearised (friction as given by the caller)
+    #: load-force input column E = ∂(dx/dt)/∂F_ext, F_ext > 0 opposing extension [SI per N]
+    e: FloatArray = field(default_factory=lambda: np.empty(0))
+    #: steady piston velocity lost per newton of load force, K_f = -dv/dF at rest with the
+    #: position free (Merritt's K_ce/A²) [m/(s·N)]
+    load_compliance: float = 0.0
 
 
 def _trim_residual(z: FloatArray, position: float, p: FloatArray, ps: float) -> FloatArray:
@@ -164,6 +170,21 @@ def _jacobian(x0: FloatArray, u0: float, p: FloatArray, scale: FloatArray) -> tu
     return a, (dxp - dxm) / (2.0 * h)
 
 
+def _force_column(x0: FloatArray, u0: float, p: FloatArray, scale: float) -> FloatArray:
+    """Central difference of :func:`rhs` with respect to the external force p[P_FEXT] (the
+    same step rule as the state columns: 1e-6 of the force scale)."""
+    n = x0.shape[0]
+    dxp = np.empty(n)
+    dxm = np.empty(n)
+    h = 1e-6 * scale
+    pp, pm = p.copy(), p.copy()
+    pp[P_FEXT] += h
+    pm[P_FEXT] -= h
+    rhs(0.0, x0, u0, pp, dxp)
+    rhs(0.0, x0, u0, pm, dxm)
+    return (dxp - dxm) / (2.0 * h)
+
+
 def linearize(params: ServoParams, position: float | None = None) -> Linearization:
     """Linearise the nonlinear model at rest at ``position`` [m] (default mid-stroke).
 
@@ -196,13 +217,16 @@ def linearize(params: ServoParams, position: float | None = None) -> Linearizati
     scale = np.array([1.0, 1.0, lp.valve.omega_v, ps, ps, lp.cylinder.stroke,
                       lp.velocity_gain])
     a, b = _jacobian(tr.state, tr.command, p, scale)
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+    force_scale = ps * lp.cylinder.piston_area  # the supply's stall force [N]
+    e = _force_column(tr.state, tr.command, p, force_scale)
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b)) and np.all(np.isfinite(e))):
         raise SimulationDivergedError(f"non-finite Jacobian at position {position!r} m")
     keep = list(range(N_STATE))
     if lp.valve.tau_v == 0.0:
         keep.remove(S_LAG)
     a = a[np.ix_(keep, keep)]
     b = b[keep]
+    e = e[keep]
     names = tuple(STATE_NAMES[i] for i in keep)
     c = np.zeros(len(keep))
     c[names.index("x")] = 1.0
@@ -224,14 +248,19 @@ def linearize(params: ServoParams, position: float | None = None) -> Linearizati
     damping = float(-lam.real / omega_0)
     # steady velocity per unit command: solve the model without the position state; a
     # leak-free model has no steady pressure level, so take the limit of vanishing leakage
-    aa, bb = a, b
+    aa, bb, ee = a, b, e
     if lp.valve.null_leakage == 0.0 and lp.cylinder.internal_leakage == 0.0:
         limit = replace(lp, valve=replace(lp.valve, null_leakage=_LIMIT_LEAKAGE))
         aa, bb = _jacobian(tr.state, tr.command, pack(limit), scale)
+        ee = _force_column(tr.state, tr.command, pack(limit), force_scale)[keep]
         aa, bb = aa[np.ix_(keep, keep)], bb[keep]
     red = [i for i, n in enumerate(names) if n != "x"]
     z = solve(aa[np.ix_(red, red)], -bb[red])
     velocity_gain = float(z[red.index(names.index("v"))])
+    # the same steady solve for the force: the velocity the load force leaves [m/s per N]
+    zf = solve(aa[np.ix_(red, red)], -ee[red])
+    load_compliance = -float(zf[red.index(names.index("v"))])
     return Linearization(trim=tr, state_names=names, a=a, b=b, c=c,
                          eigenvalues=eig.astype(np.complex128), omega_0=omega_0,
-                         damping=damping, velocity_gain=velocity_gain, params=lp)
+                         damping=damping, velocity_gain=velocity_gain, params=lp, e=e,
+                         load_compliance=load_compliance)

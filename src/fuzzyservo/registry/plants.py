@@ -61,7 +61,10 @@ class PlantKind:
         ``make(params, position, substep) -> Plant``: the model at rest at ``position`` [m]
         (``substep`` [s] is the RK4 step bound of a nonlinear plant, unused by linear ones).
     force_input : bool
-        Whether the model takes a load-force disturbance.
+        Whether the model's own force balance takes the external force (the nonlinear
+        model; a sweep varies ``load.external_force`` only there). Every registered plant
+        takes a load-force *disturbance* (``--load-force``): the linear ones through their
+        force input, by superposition (``LinearPlant.force_response``).
     supply_ripple : bool
         Whether a supply-pressure ripple (``supply.ripple_amplitude``) reaches the model (the
         linearisations leave it out).
@@ -92,7 +95,8 @@ _LINEAR_IGNORES = ("transducer.resolution", "supply.ripple_amplitude",
 def _linear(params: ServoParams, position: float, substep: float) -> Plant:
     del substep
     servo = LinearServo.from_params(params, linearize(params, position))
-    return LinearPlant.from_servo(servo, position, stroke=params.cylinder.stroke)
+    return LinearPlant.from_servo(servo, position, stroke=params.cylinder.stroke,
+                                  force_op=params.load.external_force)
 
 
 def _small_signal(params: ServoParams, position: float, substep: float) -> Plant:

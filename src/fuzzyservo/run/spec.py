@@ -3,12 +3,12 @@
 A :class:`RunSpec` names everything that decides a run of ``fuzzyservo simulate`` in closed
 loop: the controller (kind, gains, options, fuzzy systems read from files), the plant (kind,
 parameter set, overrides, start, RK4 step bound) and the run (reference, duration, sample
-time, delay, noise and its seed). :meth:`RunSpec.build` checks it and makes the objects that
-run it (:class:`BuiltRun`), with the messages the command line prints for each bad value;
-:meth:`RunSpec.to_argv` is the ``simulate`` command line that makes the same run and
-:meth:`RunSpec.from_argv` reads one back. The command line (``simulate``), the browser page
-and sweep replays all go through it, so the command a front end shows reproduces its run bit
-for bit (docs/architecture.md, "Runs").
+time, delay, noise and its seed, load-force disturbance). :meth:`RunSpec.build` checks it
+and makes the objects that run it (:class:`BuiltRun`), with the messages the command line
+prints for each bad value; :meth:`RunSpec.to_argv` is the ``simulate`` command line that
+makes the same run and :meth:`RunSpec.from_argv` reads one back. The command line
+(``simulate``), the browser page and sweep replays all go through it, so the command a front
+end shows reproduces its run bit for bit (docs/architecture.md, "Runs").
 
 Examples
 --------
@@ -47,6 +47,7 @@ from ..registry import (
     plant_kind,
 )
 from ..sim import DEFAULT_DELAY, parse_reference, simulate, simulate_batch
+from ..sim.disturbances import LOAD_FORCE_FORMS, load_force_samples, parse_load_force
 
 __all__ = [
     "DEFAULT_SET",
@@ -113,6 +114,10 @@ class RunSpec:
         Standard deviation of the measurement noise [m].
     seed : int
         Seed of the noise generator.
+    load_force : str
+        Load-force disturbance added to ``load.external_force`` [N, s], as ``--load-force``
+        takes it (:func:`~fuzzyservo.sim.disturbances.parse_load_force`): ``step:F[:T]``,
+        ``pwl:T0:F0,...`` or a CSV file; F > 0 opposes extension; ``""``: none.
     start : float
         Start position, fraction of the stroke [-].
     substep : float
@@ -133,6 +138,7 @@ class RunSpec:
     delay: float = DEFAULT_DELAY
     noise_std: float = 0.0
     seed: int = 0
+    load_force: str = ""
     start: float = 0.5
     substep: float = DEFAULT_SUBSTEP
 
@@ -196,6 +202,8 @@ class RunSpec:
             out += [f"--noise-std={_num(self.noise_std)}"]
         if self.noise_std != 0.0 or self.seed != 0:
             out += [f"--seed={self.seed}"]
+        if self.load_force:
+            out += [f"--load-force={self.load_force}"]
         if self.substep != DEFAULT_SUBSTEP or (explicit and self.plant == "nonlinear"):
             out += [f"--substep={_num(self.substep)}"]
         return [*out, *self.option_args(), *self.system_args(),
@@ -240,8 +248,8 @@ class RunSpec:
                    plant=args.plant, param_set=args.param_set or DEFAULT_SET,
                    overrides=tuple(overrides.items()), reference=args.reference,
                    duration=args.duration, ts=args.ts, delay=args.delay,
-                   noise_std=args.noise_std, seed=args.seed, start=args.start,
-                   substep=args.substep)
+                   noise_std=args.noise_std, seed=args.seed, load_force=args.load_force,
+                   start=args.start, substep=args.substep)
 
     # ------------------------------------------------------------------ objects
 
@@ -373,7 +381,21 @@ class RunSpec:
         resolved, plant, reference = self._loop(params)
         return BuiltRun(spec=self, controller=ctl.controller, plant=plant, params=resolved,
                         reference=reference, gains=ctl.gains, options=ctl.options,
-                        systems=ctl.systems)
+                        systems=ctl.systems, load=self.checked_load_force())
+
+    def checked_load_force(self) -> Any:
+        """The load-force profile (None: none), checked as ``--load-force`` checks it.
+
+        Raises
+        ------
+        InputError
+            A form :func:`~fuzzyservo.sim.disturbances.parse_load_force` does not take, or an
+            unreadable profile file.
+        """
+        if not isinstance(self.load_force, str):
+            raise ParameterError(f"--load-force must be text ({LOAD_FORCE_FORMS}), got "
+                                 f"{self.load_force!r}")
+        return parse_load_force(self.load_force)
 
     def _loop(self, params: ServoParams | None) -> tuple[ServoParams, Any, Any]:
         """The parameters, plant and reference, checked after the controller."""
@@ -381,6 +403,7 @@ class RunSpec:
         self.checked_delay(resolved)
         check_start(self.start)
         reference = parse_reference(self.reference)
+        self.checked_load_force()
         check_seed(self.seed, "--seed")
         return resolved, self.plant_of(resolved), reference
 
@@ -410,7 +433,7 @@ class RunSpec:
         template = kind.template(dt=ts, systems=self._fuzzy(systems), options=options)
         resolved, plant, reference = self._loop(params)
         return BatchRun(spec=self, template=template, plant=plant, params=resolved,
-                        reference=reference)
+                        reference=reference, load=self.checked_load_force())
 
     def run(self) -> Any:
         """Build and simulate the run (:meth:`BuiltRun.simulate`)."""
@@ -439,6 +462,14 @@ class BuiltRun:
     gains: dict[str, float]  #: every gain of the kind, checked [SI]
     options: dict[str, Any]  #: the controller's options as keywords
     systems: dict[str, Any] | None = field(default=None)  #: fuzzy systems, if from files
+    load: Any = None  #: the load-force profile (:mod:`fuzzyservo.sim.disturbances`), or None
+
+    def disturbance(self) -> Any:
+        """The total external force as :func:`~fuzzyservo.sim.simulate` takes it (a function
+        of the sample times: ``load.external_force`` plus the profile, held over each
+        sample), or None without a load force (the run is then bit for bit the run of
+        before the load force existed)."""
+        return _disturbance(self.load, self.params)
 
     def notes(self) -> tuple[str, ...]:
         """What the command prints as notes for the run: the scaling of each fuzzy system
@@ -465,7 +496,8 @@ class BuiltRun:
         """The run (:class:`fuzzyservo.sim.SimResult`)."""
         s = self.spec
         return simulate(self.controller, self.plant, self.reference, duration=s.duration,
-                        delay=s.delay, noise_std=s.noise_std, rng=self.rng())
+                        delay=s.delay, disturbance=self.disturbance(),
+                        noise_std=s.noise_std, rng=self.rng())
 
 
 @dataclass(frozen=True, slots=True)
@@ -479,6 +511,7 @@ class BatchRun:
     plant: Any  #: the run's plant
     params: ServoParams  #: the servo parameters
     reference: Any  #: the reference (offset from the start position) [m]
+    load: Any = None  #: the load-force profile, or None
 
     def row(self, gains: Mapping[str, float]) -> FloatArray:
         """One batch row: ``gains`` (checked, defaults filled) in the class's columns."""
@@ -501,7 +534,17 @@ class BatchRun:
                               plant=self.plant if plant is None else plant,
                               reference=self.reference, duration=s.duration,
                               delay=s.delay if delay is None else delay,
+                              disturbance=_disturbance(self.load, self.params),
                               keep_traces=keep_traces, **extra)
+
+
+def _disturbance(load: Any, params: ServoParams) -> Any:
+    """The total external force of a load-force profile on ``params`` (a function of t), or
+    None for none."""
+    if load is None:
+        return None
+    base = float(params.load.external_force)
+    return lambda t: load_force_samples(load, t, base)
 
 
 @functools.lru_cache(maxsize=64)
@@ -703,6 +746,7 @@ def _parser() -> argparse.ArgumentParser:
     for name in ("duration", "ts", "start", "delay", "noise_std", "substep"):
         p.add_argument(f"--{name.replace('_', '-')}", type=float, default=run_default(name))
     p.add_argument("--seed", type=int, default=run_default("seed"))
+    p.add_argument("--load-force", default=run_default("load_force"))
     for o in controller_options():
         p.add_argument(o.flag, default=None, type=o.type, choices=o.choices or None)
     p.add_argument("--du-system", default=None)

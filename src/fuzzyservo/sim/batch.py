@@ -86,6 +86,23 @@ def _noise_rows(noise: ArrayLike | None, noise_std: float, t: FloatArray) -> Flo
     return np.ascontiguousarray(arr)
 
 
+def _force_rows(disturbance: ArrayLike | None, t: FloatArray) -> FloatArray | None:
+    """The total external force as rows (1 or runs, len(t)) [N], or None."""
+    if disturbance is None:
+        return None
+    if callable(disturbance) or np.ndim(disturbance) != 2:
+        return profile(disturbance, t, "disturbance")[None, :]
+    arr = np.asarray(disturbance, dtype=np.float64)
+    if arr.shape[1] != t.size or arr.shape[0] == 0:
+        raise InputError(f"a disturbance per run needs shape (runs, {t.size}), got {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if np.any(bad):
+        i, k = np.argwhere(bad)[0]
+        raise InputError(f"disturbance must be finite, got {arr[i, k]!r} in row {i} at "
+                         f"sample {k}")
+    return np.ascontiguousarray(arr)
+
+
 def _runs(counts: dict[str, int]) -> int:
     """The number of runs: every count is 1 (repeated) or the same n."""
     sizes = {v for v in counts.values() if v != 1}
@@ -132,7 +149,11 @@ def simulate_batch(
     delay : float or array (runs,)
         Transport delay on the command [s], >= 0.
     disturbance : array or callable, optional
-        External load force [N] per sample, shared by all runs (nonlinear plant only).
+        Total external load force F_ext [N] per sample (> 0 opposes extension), held over
+        each sample: (n_samples,) or a function of t shared by all runs, or one row per run
+        (runs, n_samples). As :func:`~fuzzyservo.sim.simulate` takes it: the nonlinear
+        plant in its force balance, a linear plant by superposition (its open-loop
+        response to the force added to the measured output, through the noise row).
     noise_std : float
         Measurement noise standard deviation [m]; each run draws its own from ``rng``.
     rng : numpy.random.Generator, optional
@@ -193,6 +214,9 @@ def simulate_batch(
               "reference rows": roff.shape[0]}
     if noise_rows is not None:
         counts["noise rows"] = noise_rows.shape[0]
+    force_rows = _force_rows(disturbance, t)
+    if force_rows is not None:
+        counts["disturbance rows"] = force_rows.shape[0]
     n = _runs(counts)
     delays = np.broadcast_to(d_arr, (n,)).copy()
     for dv in delays:
@@ -209,6 +233,15 @@ def simulate_batch(
     nz = make_noise(noise_std, rng, (n, t.size)) if noise_rows is None else noise_rows
     if nz.shape[0] == 0:
         nz = np.empty((0, 0))
+    if force_rows is not None and force_rows.shape[0] > 1 and \
+            isinstance(plants[0], NonlinearPlant):
+        # the nonlinear loop takes one force row for all its runs: one batch per distinct
+        # row, each run with the noise drawn above (the same bits as a batch of one)
+        return _by_force(controller, g, plants, reference, roff, duration, delays, nz,
+                         force_rows, keep_traces, rise, settle_band, settle_band_2,
+                         tail_fraction)
+    if force_rows is not None and isinstance(plants[0], LinearPlant):
+        nz = _with_force_response(nz, force_rows, plants, ts, n)
     keep = bool(keep_traces)
     shape = (n, t.size) if keep else (0, t.size)
     y_tr, u_tr, a_tr = np.empty(shape), np.empty(shape), np.empty(shape)
@@ -226,8 +259,6 @@ def simulate_batch(
                   tail=tail, bad=bad)
     loops = kernels(controller.law)
     if isinstance(plants[0], LinearPlant):
-        if disturbance is not None:
-            raise ParameterError("a load-force disturbance needs the nonlinear plant")
         rows = []
         cache: dict[tuple[int, float], FloatArray] = {}
         for p, dv in zip(plants, delays, strict=True):
@@ -244,7 +275,7 @@ def simulate_batch(
         run_chunks(loops.linear_chunk, n, law, lin, sig, out)
     else:
         nl = [p for p in plants if isinstance(p, NonlinearPlant)]
-        force = profile(disturbance, t, "disturbance")
+        force = force_rows[0] if force_rows is not None else np.empty(0)
         split = [split_delay(float(dv), ts) for dv in delays]
         rows_nl = NonlinearRows(
             p=np.vstack([p.packed for p in nl]), x0=np.vstack([p.x0 for p in nl]), y0=y0s,
@@ -257,3 +288,64 @@ def simulate_batch(
         metrics=metrics, metric_names=METRIC_NAMES, diverged=bad >= 0, t=t,
         r=roff[0] if roff.shape[0] == 1 else roff, y0=y0s, tail=tail, tail_names=TAIL_NAMES,
         y=y_tr if keep else None, u=u_tr if keep else None, alpha=a_tr if keep else None)
+
+
+def _with_force_response(nz: FloatArray, force_rows: FloatArray, plants: list[Plant],
+                         ts: float, n: int) -> FloatArray:
+    """The noise rows (runs, n_samples) with each run's open-loop response to its force
+    added (:meth:`LinearPlant.force_response`; superposition), computed once per distinct
+    plant and force row."""
+    cache: dict[tuple[int, int], FloatArray] = {}
+    out = np.empty((n, force_rows.shape[1]))
+    for i, p in enumerate(plants):
+        assert isinstance(p, LinearPlant)
+        j = 0 if force_rows.shape[0] == 1 else i
+        key = (id(p), j)
+        if key not in cache:
+            cache[key] = p.force_response(force_rows[j], ts)[0]
+        y_f = cache[key]
+        out[i] = y_f if nz.shape[0] == 0 else nz[min(i, nz.shape[0] - 1)] + y_f
+    return out
+
+
+def _by_force(controller: PackedController, g: FloatArray | None, plants: list[Plant],
+              reference: Reference | ArrayLike, roff: FloatArray, duration: float,
+              delays: FloatArray, nz: FloatArray, force_rows: FloatArray, keep: bool,
+              rise: tuple[float, float], settle_band: float, settle_band_2: float,
+              tail_fraction: float) -> BatchResult:
+    """Runs with their own force rows on the nonlinear plant: one batch per distinct row,
+    merged in run order."""
+    n = len(plants)
+    groups: dict[bytes, list[int]] = {}
+    for i in range(n):
+        groups.setdefault(force_rows[i].tobytes(), []).append(i)
+    parts = []
+    for idx in groups.values():
+        sel = np.array(idx)
+        ref = roff[sel] if roff.shape[0] > 1 else reference
+        gains = None if g is None else (g if g.shape[0] == 1 else g[sel])
+        part = simulate_batch(
+            controller, gains, plant=[plants[i] for i in idx], reference=ref,
+            duration=duration, delay=delays[sel], disturbance=force_rows[idx[0]],
+            noise=None if nz.shape[0] == 0 else nz[np.minimum(sel, nz.shape[0] - 1)],
+            keep_traces=keep, rise=rise, settle_band=settle_band,
+            settle_band_2=settle_band_2, tail_fraction=tail_fraction)
+        parts.append((sel, part))
+    first = parts[0][1]
+    metrics = np.empty((n, first.metrics.shape[1]))
+    tail = np.empty((n, first.tail.shape[1]))
+    diverged = np.empty(n, dtype=bool)
+    y0 = np.empty(n)
+    traces = {name: np.empty((n, first.t.size)) for name in ("y", "u", "alpha")} \
+        if keep else None
+    for sel, part in parts:
+        metrics[sel], tail[sel], diverged[sel], y0[sel] = (part.metrics, part.tail,
+                                                           part.diverged, part.y0)
+        if traces is not None:
+            for name, arr in traces.items():
+                arr[sel] = getattr(part, name)
+    return BatchResult(
+        metrics=metrics, metric_names=METRIC_NAMES, diverged=diverged, t=first.t,
+        r=roff[0] if roff.shape[0] == 1 else roff, y0=y0, tail=tail, tail_names=TAIL_NAMES,
+        y=None if traces is None else traces["y"], u=None if traces is None else traces["u"],
+        alpha=None if traces is None else traces["alpha"])

@@ -105,6 +105,21 @@ class LinearPlant:
     stroke : float or None
         Stroke of the cylinder the model stands for [m]: :func:`simulate` keeps references
         within [0, stroke]. None (default): not known, not checked.
+    e : ndarray
+        Load-force input vector E (n,) [state unit / s per N]: dx/dt gains E (F - F_op) for
+        an external force F opposing extension; empty (default): the model has no force
+        input and refuses a load-force disturbance.
+    force_op : float
+        External force at the operating point, F_op [N] (the parameter set's
+        ``load.external_force``, which the operating point already holds).
+
+    Notes
+    -----
+    A load force enters by superposition (:meth:`force_response`): the plant is linear, so
+    the closed loop on it is the loop driven by u plus the open-loop response y_F of the
+    plant to the force alone, which does not depend on u; the loops add y_F to the measured
+    output through their measurement-noise row (docs/model.md, "Load force on the linear
+    models").
     """
 
     a: FloatArray  #: state matrix [1/s]
@@ -114,6 +129,8 @@ class LinearPlant:
     x_op: FloatArray = field(default_factory=lambda: np.empty(0))  #: operating point [SI]
     u0: float = 0.0  #: holding command [-]
     stroke: float | None = None  #: stroke of the cylinder [m]; None: unknown
+    e: FloatArray = field(default_factory=lambda: np.empty(0))  #: force input [SI per N]
+    force_op: float = 0.0  #: external force at the operating point [N]
 
     def __post_init__(self) -> None:
         if self.stroke is not None and not (math.isfinite(self.stroke) and self.stroke > 0.0):
@@ -139,6 +156,14 @@ class LinearPlant:
         object.__setattr__(self, "c", c)
         object.__setattr__(self, "x_op", x_op)
         object.__setattr__(self, "u0", float(self.u0))
+        e = np.asarray(self.e, dtype=np.float64).reshape(-1)
+        if e.size not in (0, n) or not np.all(np.isfinite(e)) or \
+                not math.isfinite(self.force_op):
+            raise ParameterError(f"the force input e needs {n} finite values (or none) and "
+                                 f"force_op a finite force, got {e.shape} and "
+                                 f"{self.force_op!r}")
+        object.__setattr__(self, "e", e)
+        object.__setattr__(self, "force_op", float(self.force_op))
         if not self.state_names:
             object.__setattr__(self, "state_names", tuple(f"x{i}" for i in range(n)))
         elif len(self.state_names) != n:
@@ -156,16 +181,18 @@ class LinearPlant:
 
     @classmethod
     def from_servo(cls, servo: Any, position: float = 0.0, *,
-                   stroke: float | None = None) -> LinearPlant:
+                   stroke: float | None = None, force_op: float = 0.0) -> LinearPlant:
         """From a :class:`fuzzyservo.plant.LinearServo` (eq. 8) at rest at ``position`` [m]:
         its block states, the position state ``x`` absolute, the others 0 at rest; ``stroke``
-        [m] as the class's attribute."""
+        [m] and ``force_op`` [N] as the class's attributes; its force input
+        (:meth:`~fuzzyservo.plant.LinearServo.force_input`) when the servo has one."""
         a, b, c, d = servo.state_space()
         names: tuple[str, ...] = servo.state_names
         x_op = np.zeros(len(names))
         x_op[names.index("x")] = float(position)
+        e = servo.force_input() if servo.has_force_input else np.empty(0)
         return cls.from_state_space(a, np.ravel(b), np.ravel(c), d, state_names=names,
-                                    x_op=x_op, stroke=stroke)
+                                    x_op=x_op, stroke=stroke, e=e, force_op=force_op)
 
     @classmethod
     def from_linearization(cls, lin: Any) -> LinearPlant:
@@ -176,7 +203,8 @@ class LinearPlant:
         return cls(np.asarray(lin.a), np.asarray(lin.b), np.asarray(lin.c),
                    state_names=tuple(lin.state_names),
                    x_op=np.asarray(lin.trim.state, dtype=np.float64)[keep],
-                   u0=float(lin.trim.command), stroke=float(lin.params.cylinder.stroke))
+                   u0=float(lin.trim.command), stroke=float(lin.params.cylinder.stroke),
+                   e=np.asarray(lin.e), force_op=float(lin.params.load.external_force))
 
     @property
     def n_states(self) -> int:
@@ -187,6 +215,48 @@ class LinearPlant:
     def y0(self) -> float:
         """Output at rest [m]: C x_op."""
         return dot(self.c, self.x_op)
+
+    def force_response(self, force: FloatArray, ts: float) -> tuple[FloatArray, FloatArray]:
+        """The plant's open-loop response to an external force alone, from rest.
+
+        The force samples ``force`` [N] (total external force, F_op included) are held over
+        each sample, as the nonlinear loop holds them, and the model is discretised by the
+        package's one ZOH (:func:`fuzzyservo.plant.zoh.discretize`, no delay: the force acts
+        on the piston directly): x_F[0] = 0, x_F[k+1] = Φ x_F[k] + Γ_E (F_k - F_op),
+        y_F[k] = C x_F[k]. Sums in a fixed order, element by element (no BLAS:
+        docs/architecture.md, "Machine-independent results").
+
+        Returns
+        -------
+        y_F : ndarray (n_t,)
+            Output deviation due to the force [m].
+        x_F : ndarray (n_t, n)
+            State deviation due to the force [state units].
+
+        Raises
+        ------
+        ParameterError
+            The plant has no force input.
+        """
+        if self.e.size == 0:
+            raise ParameterError("this linear plant has no load-force input (e); build it "
+                                 "with fuzzyservo.registry.build_plant")
+        f = np.asarray(force, dtype=np.float64) - self.force_op
+        m = discretize(self.a, self.e, ts, 0.0)
+        phi, gam = m.phi, m.gamma0
+        n, n_t = self.n_states, f.size
+        xs = np.zeros((n_t, n))
+        x = np.zeros(n)
+        for k in range(n_t - 1):
+            nxt = gam * f[k]
+            for j in range(n):
+                nxt = nxt + phi[:, j] * x[j]
+            x = nxt
+            xs[k + 1] = x
+        ys = np.zeros(n_t)
+        for i in range(n):
+            ys = ys + self.c[i] * xs[:, i]
+        return ys, xs
 
     def discretize(self, ts: float, delay: float) -> FloatArray:
         """Packed ZOH discretisation with delay (:func:`fuzzyservo.plant.zoh.discretize`):
@@ -362,9 +432,12 @@ def run_loop(controller: PackedController, plant: Plant, r: FloatArray, *, delay
     sig = Signals(t=t, r=r[None, :], rd=np.ascontiguousarray(rd, dtype=np.float64)[None, :],
                   rdd=np.ascontiguousarray(rdd, dtype=np.float64)[None, :],
                   noise=noise[None, :] if noise.size else np.empty((0, 0)), shift=False)
+    x_force: FloatArray | None = None
     if isinstance(plant, LinearPlant):
-        if disturbance is not None:
-            raise ParameterError("a load-force disturbance needs the nonlinear plant")
+        if disturbance is not None:  # by superposition, through the measurement's row
+            y_force, x_force = plant.force_response(profile(disturbance, t, "disturbance"), ts)
+            noise = y_force if noise.size == 0 else noise + y_force
+            sig = sig._replace(noise=noise[None, :])
         nx = plant.n_states
         x_end = np.empty(nx)
         xs = np.empty((n, nx))
@@ -390,6 +463,8 @@ def run_loop(controller: PackedController, plant: Plant, r: FloatArray, *, delay
     x = x_end
     if bad >= 0:
         raise_diverged(bad * ts, x, plant.state_names, what)
+    if x_force is not None:  # the kept states include the force's part
+        xs += x_force
     return RawRun(y=y[0], u=u[0], alpha=a[0], x=xs)
 
 
@@ -431,7 +506,13 @@ def simulate(
         Transport delay on the command [s], >= 0 (any value, not only multiples of T_s);
         default :data:`DEFAULT_DELAY` (none).
     disturbance : array or callable, optional
-        External load force [N] per sample (nonlinear plant only), or a function of t.
+        Total external load force F_ext [N] per sample (> 0 opposes extension; the
+        parameter set's ``load.external_force`` is the plant's at rest), or a function of t,
+        held over each sample. The nonlinear plant takes it in its force balance; a linear
+        plant adds its open-loop response to F_ext - F_op (:meth:`LinearPlant.force_response`)
+        to the measured output, and to the states (superposition). A load-force profile of
+        :mod:`fuzzyservo.sim.disturbances` gives it with
+        :func:`~fuzzyservo.sim.disturbances.load_force_samples`.
     noise_std : float
         Standard deviation of white measurement noise [m], drawn from ``rng``.
     rng : numpy.random.Generator, optional

@@ -37,13 +37,19 @@ def run_spec(spec: SweepSpec, row: Mapping[str, Any]) -> RunSpec:
         ref = parse_reference(spec.reference)
         assert isinstance(ref, Step)
         reference = f"step:{_num(varied['amplitude'])}:{_num(ref.time)}"
+    load_force = spec.load_force
+    if "load_force_step" in varied:
+        step = spec.load_step
+        assert step is not None
+        load_force = f"step:{_num(varied['load_force_step'])}:{_num(step.time)}"
     std = varied.get("noise_std", spec.noise_std)
     return RunSpec(controller=entry.controller, gains=entry.gains, options=entry.options,
                    systems=entry.systems, no_rule_value=entry.no_rule_value, plant=spec.plant,
                    param_set=spec.param_set, overrides=tuple(params.items()),
                    reference=reference, duration=spec.duration, ts=spec.ts,
                    delay=varied.get("delay", spec.delay), noise_std=std if std > 0.0 else 0.0,
-                   seed=int(row["noise_seed"]) if std > 0.0 else 0, start=spec.start,
+                   seed=int(row["noise_seed"]) if std > 0.0 else 0, load_force=load_force,
+                   start=spec.start,
                    substep=spec.substep)
 
 

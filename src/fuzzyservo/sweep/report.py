@@ -232,6 +232,8 @@ def _quantity(spec: SweepSpec, var: Variation) -> Quantity:
         label, scale = "step amplitude [mm]", 1e-3
     elif name == "noise_std":
         label, scale = "noise std [µm]", 1e-6
+    elif name == "load_force_step":
+        label, scale = "load-force step F [N]", 1.0
     else:
         label, scale = f"{name} [{_param_unit(name)}]", 1.0
     if var.is_grid:

@@ -71,6 +71,9 @@ def _step(spec: SweepSpec) -> float:
         raise ParameterError(f"a robust tuning needs a step reference from t = 0 "
                              f"(reference.spec = \"step:0.1\"), the spec has "
                              f"{spec.reference!r}")
+    if spec.load_force:
+        raise ParameterError(f"a robust tuning runs without a load-force disturbance: drop "
+                             f"[sweep] load_force ({spec.load_force!r})")
     if any(v.name == "amplitude" for v in spec.vary):
         raise ParameterError("a robust tuning runs one step on every plant (its objective and "
                              "constraints are normalised by it): the spec must not vary "

@@ -38,6 +38,7 @@ from ..plant import with_overrides
 from ..registry import build_plant
 from ..sim import simulate_batch
 from ..sim.closed_loop import check_delay, plant_limits, time_grid
+from ..sim.disturbances import LoadStep, load_force_samples, parse_load_force
 from ..sim.references import Step, check_reference, check_reference_samples, parse_reference
 from ..sim.stepinfo import METRIC_NAMES
 from .dataset import (
@@ -97,6 +98,7 @@ class PointRuns:
         self.delay = np.asarray(delay, dtype=np.float64)
         self.noise_std = np.asarray(pts.values.get("noise_std", np.full(m, spec.noise_std)))
         cache: dict[tuple[float, ...], Any] = {}
+        base_force: dict[tuple[float, ...], float] = {}
         checked_refs: dict[float, Any] = {}
         # the check of the sampled reference against the plant depends on these only: done
         # once per distinct (start, stroke, resolution, amplitude), not per point (on 20 s
@@ -116,6 +118,7 @@ class PointRuns:
                     cache[key] = build_plant(spec.plant, params,
                                              spec.start * params.cylinder.stroke,
                                              substep=spec.substep)
+                    base_force[key] = float(params.load.external_force)
                 except FuzzyServoError as exc:
                     cache[key] = exc
             plant = cache[key]
@@ -170,6 +173,19 @@ class PointRuns:
                 if noisy[pj]:
                     rng = np.random.default_rng(int(pts.noise_seed[pj]))
                     self.noise[row] = rng.normal(0.0, float(self.noise_std[pj]), size=(n,))
+        # the total external force per valid point [N]: its set's load.external_force plus
+        # the load force (its step's F varied by load_force_step)
+        self.force: FloatArray | None = None
+        load = parse_load_force(spec.load_force)
+        if load is not None and np.any(self.valid):
+            f_step = pts.values.get("load_force_step")
+            idx = np.flatnonzero(self.valid)
+            self.force = np.empty((idx.size, n))
+            for row, pj in enumerate(idx.tolist()):
+                key = tuple(float(pts.values[nm][pj]) for nm in param_names)
+                prof = load if f_step is None else \
+                    LoadStep(float(f_step[pj]), spec.load_step.time)  # type: ignore[union-attr]
+                self.force[row] = load_force_samples(prof, t, base_force[key])
         # the move the limit-cycle test measures against [m]
         if amp is not None:
             self.step = np.asarray(amp, dtype=np.float64).copy()
@@ -209,7 +225,7 @@ def compute_chunk(spec: SweepSpec, c: int, controllers: Sequence[Any] | None = N
         reference: Any = runs.ref if runs.roff is None else runs.roff[idx]
         res = simulate_batch(ctl, None, plant=[runs.plants[j] for j in idx], reference=reference,
                              duration=spec.duration, delay=runs.delay[idx], noise=runs.noise,
-                             tail_fraction=TAIL_FRACTION)
+                             disturbance=runs.force, tail_fraction=TAIL_FRACTION)
         rows = idx * n_ctl + k
         for i, name in enumerate(res.metric_names):
             metric_cols[name][rows] = res.metrics[:, i]

@@ -59,6 +59,7 @@ from ..plant import ServoParams, allowed_names, with_overrides
 from ..registry import controller_kind, controller_names, plant_kind, plant_names
 from ..registry.plants import DEFAULT_SUBSTEP
 from ..sim.closed_loop import MAX_RK4_STEPS, time_grid
+from ..sim.disturbances import LoadStep, parse_load_force
 from ..sim.references import Step, parse_reference
 
 __all__ = [
@@ -77,8 +78,9 @@ __all__ = [
 ]
 
 #: Names a variation may take besides ``group.field`` parameters: the transport delay [s],
-#: the step amplitude [m] and the standard deviation of the sensor noise [m].
-SPECIAL_NAMES: tuple[str, ...] = ("delay", "amplitude", "noise_std")
+#: the step amplitude [m], the standard deviation of the sensor noise [m] and the force F
+#: [N] of the run's load-force step (``[sweep] load_force = "step:F:T"``).
+SPECIAL_NAMES: tuple[str, ...] = ("delay", "amplitude", "noise_std", "load_force_step")
 
 #: ``load_force`` is a friendlier name for the load force F_L [N] (``load.external_force``).
 _ALIASES = {"load_force": "load.external_force"}
@@ -114,7 +116,7 @@ LOG_TAIL_SCHEME = 2
 UNRECORDED_SCHEME = 1
 
 _SWEEP_KEYS = {"name", "plant", "param_set", "start", "ts", "duration", "substep", "samples",
-               "seed", "chunk", "delay", "noise_std"}
+               "seed", "chunk", "delay", "noise_std", "load_force"}
 _TOP_KEYS = {"sweep", "reference", "overrides", "controllers", "vary"}
 _CTL_KEYS = {"label", "controller", "gains", "options", "du_system", "alpha_system",
              "no_rule_value"}
@@ -240,6 +242,9 @@ class SweepSpec:
     reference: str = "step:0.1"  #: reference offset from the start (simulate's syntax) [m]
     delay: float = 0.0  #: nominal transport delay [s]
     noise_std: float = 0.0  #: nominal sensor-noise standard deviation [m]
+    #: load-force disturbance as ``simulate --load-force`` takes it (a CSV by its absolute
+    #: path), added to load.external_force [N, s]; "" none
+    load_force: str = ""
     samples: int = 1  #: random draws per grid cell
     seed: int = 0  #: seed of every random draw
     chunk: int = DEFAULT_CHUNK  #: points per chunk
@@ -298,8 +303,18 @@ class SweepSpec:
         ref = parse_reference(self.reference)
         return float(ref.amplitude) if isinstance(ref, Step) else None
 
+    @property
+    def load_step(self) -> LoadStep | None:
+        """The load force when it is a step (None: none, or another profile)."""
+        prof = parse_load_force(self.load_force)
+        return prof if isinstance(prof, LoadStep) else None
+
     def nominal_value(self, name: str) -> float:
         """The nominal value of a varied quantity (SI)."""
+        if name == "load_force_step":
+            step = self.load_step
+            assert step is not None
+            return float(step.force)
         if name == "delay":
             return self.delay
         if name == "noise_std":
@@ -312,8 +327,9 @@ class SweepSpec:
         return float(getattr(getattr(self.nominal, group), fname))
 
     def canonical(self) -> dict[str, Any]:
-        """Everything the results depend on, JSON-able, in a fixed order."""
-        return {
+        """Everything the results depend on, JSON-able, in a fixed order (the load force only
+        when there is one, so that the digest of a sweep without is that of before)."""
+        out = {
             "name": self.name, "plant": self.plant, "param_set": self.param_set,
             "overrides": dict(self.overrides), "start": self.start, "ts": self.ts,
             "duration": self.duration, "substep": self.substep, "reference": self.reference,
@@ -323,6 +339,11 @@ class SweepSpec:
             "vary": [v.record() for v in self.vary],
             "sampling": self.sampling_scheme,
         }
+        if self.load_force:
+            out["load_force"] = self.load_force
+            if self.load_force.lower().endswith(".csv"):
+                out["load_force_sha256"] = sha256_file(Path(self.load_force))
+        return out
 
     @property
     def sampling_scheme(self) -> int:
@@ -357,7 +378,8 @@ class SweepSpec:
                    overrides=tuple((k, float(v)) for k, v in doc["overrides"].items()),
                    start=doc["start"], ts=doc["ts"], duration=doc["duration"],
                    substep=doc["substep"], reference=doc["reference"], delay=doc["delay"],
-                   noise_std=doc["noise_std"], samples=doc["samples"], seed=doc["seed"],
+                   noise_std=doc["noise_std"], load_force=doc.get("load_force", ""),
+                   samples=doc["samples"], seed=doc["seed"],
                    chunk=doc["chunk"], controllers=entries, vary=tuple(vary))
 
     @property
@@ -539,7 +561,12 @@ def _variation(i: int, table: Any, spec: SweepSpec) -> Variation:
                                     f"instead")
     if name not in SPECIAL_NAMES and name not in allowed_names():
         raise _bad(f"{where}.name", f"{name!r} is neither delay, amplitude, noise_std, "
-                                    f"load_force nor a parameter group.field (e.g. load.mass)")
+                                    f"load_force, load_force_step nor a parameter "
+                                    f"group.field (e.g. load.mass)")
+    if name == "load_force_step" and spec.load_step is None:
+        raise _bad(where, f"load_force_step varies the force F [N] of a load-force step: "
+                          f"set [sweep] load_force = \"step:F:T\" (it is "
+                          f"{spec.load_force!r})")
     relative = table.get("relative", False)
     if not isinstance(relative, bool):
         raise _bad(f"{where}.relative", f"must be true or false, got {relative!r}")
@@ -667,6 +694,17 @@ def parse_spec(doc: Mapping[str, Any], *, base_dir: str | Path = ".") -> SweepSp
     else:
         delay = _number("sweep.delay", delay_in, nonneg=True)
     noise = _number("sweep.noise_std", sw.get("noise_std", 0.0), nonneg=True)
+    load_force = sw.get("load_force", "")
+    if not isinstance(load_force, str):
+        raise _bad("sweep.load_force", f"must be text as simulate --load-force takes it "
+                                       f"(step:F[:T], pwl:T0:F0,..., FILE.csv), got "
+                                       f"{load_force!r}")
+    if load_force.strip().lower().endswith(".csv"):
+        load_force = str(_resolve_file(load_force.strip(), base, "sweep.load_force"))
+    try:
+        parse_load_force(load_force)
+    except InputError as exc:
+        raise _bad("sweep.load_force", str(exc)) from None
     ref = doc.get("reference", {})
     if not isinstance(ref, dict):
         raise _bad("reference", "must be a table with spec = \"step:0.1\" (simulate's syntax)")
@@ -682,7 +720,7 @@ def parse_spec(doc: Mapping[str, Any], *, base_dir: str | Path = ".") -> SweepSp
         name=str(sw.get("name", "sweep")), plant=plant, param_set=param_set,
         overrides=tuple(overrides.items()), start=start, ts=ts, duration=duration,
         substep=substep, reference=ref_spec, delay=delay, noise_std=noise,
-        samples=_integer("sweep.samples", sw.get("samples", 1), 1,
+        load_force=load_force.strip(), samples=_integer("sweep.samples", sw.get("samples", 1), 1,
                          min(MAX_POINTS, MAX_SAMPLES)),
         seed=_integer("sweep.seed", sw.get("seed", 0), 0, 2**63 - 1),
         chunk=_integer("sweep.chunk", sw.get("chunk", DEFAULT_CHUNK), 1, 1_000_000),
