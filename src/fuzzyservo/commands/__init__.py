@@ -15,6 +15,7 @@ COMMANDS: dict[str, str] = {
     "metrics": "metrics",
     "tune": "tune",
     "linearize": "linearize",
+    "bode": "bode",
     "surface": "surface",
     "fis": "fis",
     "export": "export",
@@ -32,6 +33,7 @@ HELP: dict[str, str] = {
     "metrics": "step-response metrics of a run CSV",
     "tune": "tune a controller by step-response search",
     "linearize": "linearise the servo: omega_0, damping, gains, eigenvalues",
+    "bode": "closed-loop frequency response: margins, bandwidth; analytic and measured",
     "surface": ("evaluate the paper's du or alpha fuzzy system, or a two-input "
                 "fuzzy-system file, on points or a grid"),
     "fis": "evaluate, convert, describe and draw fuzzy-system files (.fis, .fcl, .fll)",
