@@ -33,6 +33,7 @@ from fuzzyservo.registry import (
     default_systems,
 )
 from fuzzyservo.sim import simulate
+from fuzzyservo.sim.references import reference_rates
 from tests.export.ctl_harness import SANITIZE, STRICT, CStep, build, gcc, write
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -158,8 +159,11 @@ def test_random_gains_options_and_references(kind: str, tmp_path: Path) -> None:
                 plant, res = _run(kind, gains, plant_name, options=options, systems=None,
                                   reference=ref)
                 kind_gains = [gains[n] for n in controller_kind(kind).gain_names]
+                # a feed-forward law sees the samples' rates as simulate made them
+                rd, rdd = (reference_rates(ref, res.t) if controller_kind(kind).cls.law
+                           .feedforward else (None, None))
                 u = c.replay(res.r, res.y, plant.y0, plant.u0,
-                             gains=None if j == 0 else kind_gains)
+                             gains=None if j == 0 else kind_gains, rd=rd, rdd=rdd)
                 worst = max(worst, float(np.max(np.abs(u - res.u))))
     assert worst <= DOUBLE_TOL, worst
 

@@ -110,8 +110,8 @@ PARAMS = (
 STATE = (
     Field("integral", "-", "integral term I_k (holds the command at rest)"),
     Field("y_prev", "m", "previous measurement y_{k-1}"),
-    Field("v_est", "m/s", "filtered velocity estimate v̂_k"),
-    Field("a_est", "m/s^2", "filtered acceleration estimate â_k"),
+    Field("v_est", "m/s", "filtered velocity estimate v_hat_k"),
+    Field("a_est", "m/s^2", "filtered acceleration estimate a_hat_k"),
 )
 #: Gains a batch may vary, in column order.
 GAINS = (
