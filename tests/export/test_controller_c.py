@@ -33,6 +33,7 @@ from fuzzyservo.registry import (
     default_systems,
 )
 from fuzzyservo.sim import simulate
+from fuzzyservo.sim.references import reference_rates
 from tests.export.ctl_harness import SANITIZE, STRICT, CStep, build, gcc, write
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -81,7 +82,9 @@ def _compiled(kind: str, gains: dict[str, float], folder: Path, *, options: dict
 
 def _gains_files() -> list[Path]:
     files = sorted(GAINS.glob("*.toml"))
-    assert len(files) == 14  # the study's 12 and the two robust self-tuning fuzzy PIs
+    # the study's 12, the two robust self-tuning fuzzy PIs and the position controller with
+    # feed-forward on each plant
+    assert len(files) == 16
     return files
 
 
@@ -95,7 +98,11 @@ def test_committed_gains_on_both_plants(path: Path, tmp_path: Path) -> None:
         for ref in (0.1, -0.2):
             plant, res = _run(g.controller, dict(g.gains), plant_name, options={},
                               systems=None, reference=ref)
-            u = c.replay(res.r, res.y, plant.y0, plant.u0)
+            # a feed-forward law sees the rates simulate made of the samples (not exactly 0
+            # for constant samples: np.gradient over the rounded sample times, ~1e-11 m/s²)
+            rd, rdd = (reference_rates(np.full(res.t.size, ref), res.t)
+                       if controller_kind(g.controller).cls.law.feedforward else (None, None))
+            u = c.replay(res.r, res.y, plant.y0, plant.u0, rd=rd, rdd=rdd)
             assert np.all(np.isfinite(u))
             worst = max(worst, float(np.max(np.abs(u - res.u))))
     assert worst <= DOUBLE_TOL, worst
@@ -158,8 +165,11 @@ def test_random_gains_options_and_references(kind: str, tmp_path: Path) -> None:
                 plant, res = _run(kind, gains, plant_name, options=options, systems=None,
                                   reference=ref)
                 kind_gains = [gains[n] for n in controller_kind(kind).gain_names]
+                # a feed-forward law sees the samples' rates as simulate made them
+                rd, rdd = (reference_rates(ref, res.t) if controller_kind(kind).cls.law
+                           .feedforward else (None, None))
                 u = c.replay(res.r, res.y, plant.y0, plant.u0,
-                             gains=None if j == 0 else kind_gains)
+                             gains=None if j == 0 else kind_gains, rd=rd, rdd=rdd)
                 worst = max(worst, float(np.max(np.abs(u - res.u))))
     assert worst <= DOUBLE_TOL, worst
 

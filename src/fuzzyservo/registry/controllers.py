@@ -34,7 +34,12 @@ import numpy as np
 
 from .._args import mapping, real
 from .._typing import FloatArray
-from ..control import FuzzyPIController, PIDController, SelfTuningFuzzyPIController
+from ..control import (
+    FFPDController,
+    FuzzyPIController,
+    PIDController,
+    SelfTuningFuzzyPIController,
+)
 from ..control.fuzzy_pi import KernelSystem
 from ..errors import ParameterError
 from ..fuzzy.engine import pack
@@ -56,7 +61,7 @@ __all__ = [
     "unregister_controller",
 ]
 
-Controller = PIDController | FuzzyPIController
+Controller = PIDController | FuzzyPIController | FFPDController
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -531,6 +536,37 @@ _CONTROLLERS: dict[str, ControllerKind] = {
         name="stfpi", title="self-tuning fuzzy PI", cls=SelfTuningFuzzyPIController,
         gains=(_KE, _KDE, _KDU), options=_FUZZY_OPTIONS, systems=("du", "alpha"),
         tuning="paper-steps", stage_kind="fpi", rise_gain="kdu", colour="#1f77b4"),
+    # Position control with feed-forward, the industrial axis controller (control/ffpd.py;
+    # docs/model.md, "Position control with feed-forward"). Defaults: ffpd_model_gains of the
+    # paper's eq. (8) at mid-stroke (K_o = 0.2619 m/s, omega_0 = 19.6 rad/s, delta = 0.1), to 4
+    # digits (tests/control/test_ffpd.py checks them); another axis: ffpd_model_gains(its
+    # LinearServo). Boxes: kx from 1 1/m (loop gain K_v = kx K_o = 0.26 1/s, too slow to settle
+    # in the 10 s tuning run) to 1000 1/m (K_v = 262 1/s = 13 omega_0, far past the P loop's
+    # stability bound 2 delta' omega_0 at any damping the valve's lag allows); ki as the PID's,
+    # may be 0; ka_fb from 1e-3 s^2/m (damping raised by K_o omega_0 ka_fb/2 = 0.003: none) to
+    # 10 s^2/m (delta' = 26, far overdamped), may be 0. kv_ff, ka_ff and tf are held at the
+    # model's values: a step has no reference velocity or acceleration (rd = rdd = 0 at every
+    # sample), so the tuner cannot see the feed-forward gains, and tf is a filter choice.
+    # Colour pink, unused by the other kinds.
+    "ffpd": ControllerKind(
+        name="ffpd", title="position control with feed-forward (industrial axis)",
+        cls=FFPDController,
+        gains=(GainSpec(name="kx", unit="1/m", description="proportional position gain K_x",
+                        default=24.94, search=(1.0, 1000.0)),
+               GainSpec(name="ki", unit="1/(m s)", description="integral gain", default=0.0,
+                        search=(1e-3, 1e3), zero=True),
+               GainSpec(name="kv_ff", unit="s/m", description="velocity feed-forward gain "
+                        "(the model's 1/K_o)", default=3.818, slider=(0.0, 10.0)),
+               GainSpec(name="ka_ff", unit="s^2/m", description="acceleration feed-forward "
+                        "gain (the model's 2 delta/(omega_0 K_o))", default=0.03896,
+                        slider=(0.0, 0.2)),
+               GainSpec(name="ka_fb", unit="s^2/m", description="acceleration feedback gain "
+                        "(active damping, on the acceleration error)", default=0.1558,
+                        search=(1e-3, 10.0), zero=True),
+               GainSpec(name="tf", unit="s", description="time constant of the velocity and "
+                        "acceleration estimate filters", default=0.005102,
+                        slider=(0.0, 0.05))),
+        options=(U_MIN, U_MAX), colour="#e377c2"),
 }
 
 #: Every controller kind by name (read-only view of the registry).
