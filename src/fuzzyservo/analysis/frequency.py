@@ -41,6 +41,7 @@ from ..errors import InputError, ParameterError, SimulationDivergedError
 from ..sim import DEFAULT_DELAY, LinearPlant, Plant, simulate_batch
 from ..sim.closed_loop import check_run_arguments, plant_limits
 from ..sim.references import check_reference_samples
+from .tracking import harmonic_fit
 
 __all__ = [
     "DEFAULT_SETTLE",
@@ -61,6 +62,7 @@ __all__ = [
     "plant_state_space",
     "settle_time",
     "spectral_radius",
+    "transfer_at",
 ]
 
 log = logging.getLogger(__name__)
@@ -90,15 +92,60 @@ MAX_SETTLE = 60.0
 
 
 def _law_step(controller: PackedController, p: FloatArray, s: FloatArray, r: float, y: float,
-              tables: tuple[object, ...]) -> float:
-    """One sample of the controller's law at rest (``s`` updated in place); returns u.
-
-    The one place this module calls the law, so a change of the step's signature (a
-    reference rate and acceleration, zero at rest) is one line here."""
-    return float(controller.law.step_arrays(p, s, r, y, tables))
+              tables: tuple[object, ...], rd: float = 0.0, rdd: float = 0.0) -> float:
+    """One sample of the controller's law (``s`` updated in place), with the reference's
+    rate ``rd`` [m/s] and acceleration ``rdd`` [m/s²]; returns u. The one place this module
+    calls the law."""
+    return float(controller.law.step_arrays(p, s, r, y, tables, rd, rdd))
 
 
 # --- state spaces -----------------------------------------------------------------------------
+
+
+def transfer_at(a: FloatArray, b: ComplexArray, c: FloatArray, d: ComplexArray,
+                z: ComplexArray) -> ComplexArray:
+    """C (z_i I - A)^-1 b_i + d_i for each point z_i, with a right-hand side b_i (rows of
+    ``b``, (len(z), n)) and feedthrough d_i per point.
+
+    Solved by Gaussian elimination with partial pivoting written in element-wise numpy
+    operations over the points (no BLAS or LAPACK call, whose kernels differ from machine
+    to machine in the last bits: docs/architecture.md), and C x summed in index order."""
+    zz = np.asarray(z, dtype=np.complex128).reshape(-1)
+    n = int(a.shape[0])
+    dd = np.asarray(d, dtype=np.complex128).reshape(-1)
+    if n == 0:
+        return dd.copy()
+    m = -np.broadcast_to(a.astype(np.complex128), (zz.size, n, n)).copy()
+    for i in range(n):
+        m[:, i, i] += zz
+    x = np.array(b, dtype=np.complex128).reshape(zz.size, n).copy()
+    rows = np.arange(zz.size)
+    for k in range(n):
+        piv = k + np.argmax(np.abs(m[:, k:, k]), axis=1)
+        swap = piv != k
+        if np.any(swap):
+            r_s = rows[swap]
+            p_s = piv[swap]
+            top = m[r_s, k, :].copy()
+            m[r_s, k, :] = m[r_s, p_s, :]
+            m[r_s, p_s, :] = top
+            xt = x[r_s, k].copy()
+            x[r_s, k] = x[r_s, p_s]
+            x[r_s, p_s] = xt
+        for i in range(k + 1, n):
+            f = m[:, i, k] / m[:, k, k]
+            for j in range(k, n):
+                m[:, i, j] = m[:, i, j] - f * m[:, k, j]
+            x[:, i] = x[:, i] - f * x[:, k]
+    for i in range(n - 1, -1, -1):
+        acc = x[:, i]
+        for j in range(i + 1, n):
+            acc = acc - m[:, i, j] * x[:, j]
+        x[:, i] = acc / m[:, i, i]
+    out = dd.copy()
+    for i in range(n):
+        out = out + c[i] * x[:, i]
+    return out
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -133,16 +180,12 @@ class StateSpace:
         return np.asarray(np.linalg.eigvals(self.a), dtype=np.complex128)
 
     def at(self, z: ArrayLike) -> ComplexArray:
-        """The transfer function C (zI - A)^-1 B + D at the complex points ``z``."""
+        """The transfer function C (zI - A)^-1 B + D at the complex points ``z``
+        (:func:`transfer_at`: the same bits on every machine)."""
         zz = np.atleast_1d(np.asarray(z, dtype=np.complex128))
-        n = self.n_states
-        if n == 0:
-            return np.full(zz.shape, complex(self.d))
-        m = zz[:, None, None] * np.eye(n)[None, :, :] - self.a[None, :, :]
-        x = np.linalg.solve(m, np.broadcast_to(self.b.astype(np.complex128), (zz.size, n))
-                            [:, :, None])[:, :, 0]
-        out: ComplexArray = x @ self.c + self.d
-        return out
+        return transfer_at(self.a, np.broadcast_to(self.b.astype(np.complex128),
+                                                   (zz.size, self.n_states)),
+                           self.c, np.full(zz.size, complex(self.d)), zz)
 
     def response(self, freqs: ArrayLike) -> ComplexArray:
         """Frequency response at ``freqs`` [Hz]: the transfer function at z = e^{j 2π f ts}."""
@@ -165,18 +208,22 @@ class LinearizedController:
     """A controller's law linearised around its rest: deviations from the rest state s*, the
     reference r0 = y0 and the command u0::
 
-        s_{k+1} = A s_k + B_r r_k + B_y y_k,    u_k = C s_k + D_r r_k + D_y y_k
+        s_{k+1} = A s_k + B_r r_k + B_y y_k + B_rd ṙ_k + B_rdd r̈_k,
+        u_k = C s_k + D_r r_k + D_y y_k + D_rd ṙ_k + D_rdd r̈_k
+
+    (ṙ, r̈ the reference's rate and acceleration: the feed-forward inputs, zero columns for
+    a law without feed-forward).
 
     Attributes
     ----------
     a : ndarray (m, m)
         State Jacobian of the step.
-    b : ndarray (m, 2)
-        Input Jacobians: columns r [1/m ·state unit] and y.
+    b : ndarray (m, 4)
+        Input Jacobians: columns r [1/m ·state unit], y, ṙ [s/m ·state unit] and r̈.
     c : ndarray (m,)
         Command's state Jacobian [1/state unit].
-    d : ndarray (2,)
-        Command's Jacobians in r and y [1/m].
+    d : ndarray (4,)
+        Command's Jacobians in r, y [1/m], ṙ [s/m] and r̈ [s²/m].
     state_names : tuple of str
         The law's state fields kept (those u depends on, directly or through others).
     rest : ndarray
@@ -193,9 +240,9 @@ class LinearizedController:
     """
 
     a: FloatArray  #: state Jacobian (m, m)
-    b: FloatArray  #: input Jacobians (m, 2), columns r, y
+    b: FloatArray  #: input Jacobians (m, 4), columns r, y, ṙ, r̈
     c: FloatArray  #: command's state Jacobian (m,)
-    d: FloatArray  #: command's input Jacobians (2,), r then y
+    d: FloatArray  #: command's input Jacobians (4,): r, y, ṙ, r̈
     state_names: tuple[str, ...]  #: kept state fields
     rest: FloatArray  #: rest state (all fields)
     y0: float  #: operating position [m]
@@ -269,16 +316,17 @@ def linearize_controller(controller: PackedController, *, y0: float = 0.0, u0: f
             f"equilibrium there to linearise around (a fuzzy system whose output is not 0 at "
             f"zero error?)")
     n = s.size
-    x0 = np.concatenate([s, [y0, y0]])
+    x0 = np.concatenate([s, [y0, y0, 0.0, 0.0]])
 
     def f(x: FloatArray) -> FloatArray:
         st = x[:n].copy()
-        u = _law_step(controller, p, st, float(x[n]), float(x[n + 1]), tables)
+        u = _law_step(controller, p, st, float(x[n]), float(x[n + 1]), tables,
+                      float(x[n + 2]), float(x[n + 3]))
         return np.concatenate([st, [u]])
 
-    jac = np.empty((n + 1, n + 2))
+    jac = np.empty((n + 1, n + 4))
     worst = 0.0
-    for j in range(n + 2):
+    for j in range(n + 4):
         col, err = _column(f, x0, j)
         jac[:, j] = col
         worst = max(worst, err)
@@ -290,9 +338,9 @@ def linearize_controller(controller: PackedController, *, y0: float = 0.0, u0: f
                              read=False))
     idx = np.array(keep, dtype=np.int64)
     a = jac[np.ix_(idx, idx)]
-    b = jac[np.ix_(idx, [n, n + 1])]
+    b = jac[np.ix_(idx, [n, n + 1, n + 2, n + 3])]
     c = jac[n, idx]
-    d = jac[n, [n, n + 1]]
+    d = jac[n, [n, n + 1, n + 2, n + 3]]
     if worst > 1e-6:
         log.info("%s: the Jacobian at rest is uncertain to %.2g (relative); the law is not "
                  "smooth at rest, the linear model is the limit of small signals", law.title,
@@ -425,6 +473,24 @@ class LoopModel:
         b = np.concatenate([p.b * k.d[0], k.b[:, 0]])
         c = np.concatenate([p.c, np.zeros(nc)])
         return StateSpace(a, b, c, 0.0, self.ts)
+
+    def closed_loop_response(self, freqs: ArrayLike) -> ComplexArray:
+        """T at ``freqs`` [Hz], the reference's rate and acceleration included: a sampled
+        sine r_k = Re(R e^{jωkT}) has the rates ṙ_k = Re(jω R e^{jωkT}) and r̈_k = Re(-ω² R
+        e^{jωkT}) (exact, as the references give them), so the input column is
+        B_r + jω B_rd - ω² B_rdd (the same as :meth:`closed_loop` for a law without
+        feed-forward)."""
+        f = np.asarray(freqs, dtype=np.float64).reshape(-1)
+        cl = self.closed_loop()
+        p, k = self.plant, self.controller
+        w = 2.0 * np.pi * f
+        weights = np.stack([np.ones_like(w) + 0j, 1j * w, -(w**2) + 0j], axis=1)  # r, ṙ, r̈
+        cols = [0, 2, 3]
+        b = np.zeros((f.size, cl.n_states), dtype=np.complex128)
+        for i, col in enumerate(cols):
+            b = b + weights[:, i:i + 1] * np.concatenate([p.b * k.d[col], k.b[:, col]])[None, :]
+        z = np.exp(2j * np.pi * f * self.ts)
+        return transfer_at(cl.a, b, cl.c, np.zeros(f.size, dtype=np.complex128), z)
 
     def loop_transfer(self) -> StateSpace:
         """L = -C_y P, the loop broken at the plant input (negative feedback: the loop is
@@ -639,7 +705,7 @@ def closed_loop_bode(controller: PackedController, plant: LinearPlant,
     """
     model = loop_model(controller, plant, delay=delay)
     f = _frequencies(frequencies, model.ts, inclusive=True)
-    return BodeResult(frequency=f, closed_loop=model.closed_loop().response(f),
+    return BodeResult(frequency=f, closed_loop=model.closed_loop_response(f),
                       loop=model.loop_transfer().response(f), margins=margins(model),
                       model=model)
 
@@ -778,8 +844,13 @@ def measured_response(controller: PackedController, plant: Plant, frequencies: A
         t = np.arange(n_t) * ts
         rows = np.array([[amplitude * math.sin(2.0 * math.pi * f[i] * tk) for tk in t]
                          for i in idx])
+        # the sines' exact rates, as a Sine reference gives them (laws with feed-forward)
+        om = 2.0 * math.pi * f[idx]
+        cos = np.array([[math.cos(w * tk) for tk in t] for w in om])
+        rd = amplitude * om[:, None] * cos
+        rdd = -(om[:, None] ** 2) * rows
         res = simulate_batch(controller, plant=plant, reference=rows, duration=duration,
-                             delay=delay, keep_traces=True)
+                             delay=delay, keep_traces=True, rates=(rd, rdd))
         assert res.y is not None
         for row, i in enumerate(idx):
             if res.diverged[row]:
@@ -823,14 +894,14 @@ def settle_time(model: LoopModel) -> float:
 def _fit(t: FloatArray, y: FloatArray, f: float, amplitude: float
          ) -> tuple[float, float, float, float]:
     """Least-squares offset + a sin + b cos at ``f`` [Hz]: (G/amplitude, phase [deg], offset
-    [m], residual RMS / (G/√2))."""
+    [m], residual RMS / (G/√2)); summed exactly (:func:`~fuzzyservo.analysis.tracking.
+    harmonic_fit`), so the same bits on every machine."""
+    c, mean = harmonic_fit(t, y, f)
     w = 2.0 * math.pi * f
-    s = np.array([math.sin(w * tk) for tk in t])
-    c = np.array([math.cos(w * tk) for tk in t])
-    m = np.column_stack([np.ones(t.size), s, c])
-    coef, *_ = np.linalg.lstsq(m, y, rcond=None)
-    g = math.hypot(coef[1], coef[2])
-    resid = y - m @ coef
-    rms = math.sqrt(float(np.mean(resid * resid)))
+    g = abs(c)
+    fitted = np.array([c.real * math.sin(w * tk) + c.imag * math.cos(w * tk) + mean
+                       for tk in np.asarray(t).tolist()])
+    resid = y - fitted
+    rms = math.sqrt(math.fsum((resid * resid).tolist()) / max(resid.size, 1))
     dist = rms / (g / math.sqrt(2.0)) if g > 0.0 else math.inf
-    return g / amplitude, math.degrees(math.atan2(coef[2], coef[1])), float(coef[0]), dist
+    return g / amplitude, math.degrees(math.atan2(c.imag, c.real)), float(mean), dist

@@ -38,6 +38,7 @@ __all__ = [
     "SineMetrics",
     "disturbance_metrics",
     "harmonic",
+    "harmonic_fit",
     "move_metrics",
     "sine_metrics",
 ]
@@ -57,9 +58,14 @@ def _arrays(t: ArrayLike, *xs: ArrayLike) -> tuple[FloatArray, ...]:
 
 
 def harmonic(t: FloatArray, x: FloatArray, frequency: float) -> complex:
+    """See :func:`harmonic_fit`: the complex amplitude a + j b only."""
+    return harmonic_fit(t, x, frequency)[0]
+
+
+def harmonic_fit(t: FloatArray, x: FloatArray, frequency: float) -> tuple[complex, float]:
     """The first harmonic of ``x`` at ``frequency`` [Hz]: the complex amplitude c = a + j b of
     the least-squares fit x ≈ a sin(ωt) + b cos(ωt) + m, so x's fundamental is
-    |c| sin(ωt + arg c).
+    |c| sin(ωt + arg c), and the mean m.
 
     The normal equations are summed exactly (:func:`math.fsum`) with the C library's sin and
     cos per sample and solved by Cramer's rule, so the result is the same on every machine
@@ -80,14 +86,14 @@ def harmonic(t: FloatArray, x: FloatArray, frequency: float) -> complex:
 
     d = det(g)
     if d == 0.0:
-        return complex(math.nan, math.nan)
+        return complex(math.nan, math.nan), math.nan
     sol = []
-    for j in range(2):
+    for j in range(3):
         m = [row[:] for row in g]
         for i in range(3):
             m[i][j] = rhs[i]
         sol.append(det(m) / d)
-    return complex(sol[0], sol[1])
+    return complex(sol[0], sol[1]), sol[2]
 
 
 @dataclass(frozen=True, slots=True)

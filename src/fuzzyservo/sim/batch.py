@@ -129,6 +129,7 @@ def simulate_batch(
     settle_band: float = 0.02,
     settle_band_2: float = 0.05,
     tail_fraction: float = 0.25,
+    rates: tuple[ArrayLike, ArrayLike] | None = None,
 ) -> BatchResult:
     """Run many closed loops in parallel and return their step metrics (and traces).
 
@@ -174,6 +175,11 @@ def simulate_batch(
         Fraction of the run at its end over which ``BatchResult.tail`` measures the
         oscillation of y (:func:`~fuzzyservo.sim.stepinfo.tail_oscillation_core`), in (0, 1]
         [-].
+    rates : (array, array), optional
+        The reference's velocity [m/s] and acceleration [m/s²] per sample, each shaped like
+        the reference rows, for laws with feed-forward; default: the reference's own
+        (:func:`~fuzzyservo.sim.references.reference_rates`: closed form for a reference
+        object, differences of samples).
 
     Returns
     -------
@@ -239,7 +245,7 @@ def simulate_batch(
         # row, each run with the noise drawn above (the same bits as a batch of one)
         return _by_force(controller, g, plants, reference, roff, duration, delays, nz,
                          force_rows, keep_traces, rise, settle_band, settle_band_2,
-                         tail_fraction)
+                         tail_fraction, rates)
     if force_rows is not None and isinstance(plants[0], LinearPlant):
         nz = _with_force_response(nz, force_rows, plants, ts, n)
     keep = bool(keep_traces)
@@ -251,7 +257,15 @@ def simulate_batch(
     mopts = np.array(metric_options(rise, settle_band, settle_band_2))
     law = LawRows(p=np.ascontiguousarray(cps), s=np.ascontiguousarray(cs0),
                   tables=tuple(controller.tables()))
-    rd, rdd = reference_rates(reference if hasattr(reference, "values") else roff, t)
+    if rates is not None:
+        rd, rdd = (np.ascontiguousarray(np.atleast_2d(np.asarray(v, dtype=np.float64)))
+                   for v in rates)
+        if rd.shape != roff.shape or rdd.shape != roff.shape or not (
+                np.all(np.isfinite(rd)) and np.all(np.isfinite(rdd))):
+            raise InputError(f"rates need two finite arrays shaped like the reference rows "
+                             f"{roff.shape}, got {rd.shape} and {rdd.shape}")
+    else:
+        rd, rdd = reference_rates(reference if hasattr(reference, "values") else roff, t)
     sig = Signals(t=t, r=roff, rd=np.ascontiguousarray(np.atleast_2d(rd)),
                   rdd=np.ascontiguousarray(np.atleast_2d(rdd)), noise=nz, shift=True)
     out = Outputs(y=y_tr, u=u_tr, alpha=a_tr, x=np.empty((0, 1)), x_end=np.empty(0),
@@ -312,7 +326,8 @@ def _by_force(controller: PackedController, g: FloatArray | None, plants: list[P
               reference: Reference | ArrayLike, roff: FloatArray, duration: float,
               delays: FloatArray, nz: FloatArray, force_rows: FloatArray, keep: bool,
               rise: tuple[float, float], settle_band: float, settle_band_2: float,
-              tail_fraction: float) -> BatchResult:
+              tail_fraction: float,
+              rates: tuple[ArrayLike, ArrayLike] | None = None) -> BatchResult:
     """Runs with their own force rows on the nonlinear plant: one batch per distinct row,
     merged in run order."""
     n = len(plants)
@@ -323,13 +338,17 @@ def _by_force(controller: PackedController, g: FloatArray | None, plants: list[P
     for idx in groups.values():
         sel = np.array(idx)
         ref = roff[sel] if roff.shape[0] > 1 else reference
+        sub = None
+        if rates is not None:
+            r2 = [np.atleast_2d(np.asarray(v, dtype=np.float64)) for v in rates]
+            sub = (r2[0][sel], r2[1][sel]) if roff.shape[0] > 1 else (r2[0], r2[1])
         gains = None if g is None else (g if g.shape[0] == 1 else g[sel])
         part = simulate_batch(
             controller, gains, plant=[plants[i] for i in idx], reference=ref,
             duration=duration, delay=delays[sel], disturbance=force_rows[idx[0]],
             noise=None if nz.shape[0] == 0 else nz[np.minimum(sel, nz.shape[0] - 1)],
             keep_traces=keep, rise=rise, settle_band=settle_band,
-            settle_band_2=settle_band_2, tail_fraction=tail_fraction)
+            settle_band_2=settle_band_2, tail_fraction=tail_fraction, rates=sub)
         parts.append((sel, part))
     first = parts[0][1]
     metrics = np.empty((n, first.metrics.shape[1]))

@@ -618,8 +618,10 @@ def reference_rates(reference: Reference | ArrayLike, t: FloatArray
                     ) -> tuple[FloatArray, FloatArray]:
     """The reference's velocity ṙ [m/s] and acceleration r̈ [m/s²] at ``t`` [s]: in closed
     form for a reference object (its ``rates``); for samples (an array, one per sample or a
-    row per run) by second-order differences along time (:func:`numpy.gradient`), the one
-    estimate samples allow; zeros for fewer than 3 samples."""
+    row per run) by second-order differences along time (:func:`numpy.gradient`, over the
+    sample time of a uniform grid), the one estimate samples allow: a jump in the samples
+    is a spike of ṙ (give a reference object, or ``simulate_batch(rates=...)``, for exact
+    rates); zeros for fewer than 3 samples."""
     if hasattr(reference, "values"):
         rates = getattr(reference, "rates", None)
         if rates is None:  # a user's reference object with values() only
@@ -632,6 +634,10 @@ def reference_rates(reference: Reference | ArrayLike, t: FloatArray
     tt = np.asarray(t, dtype=np.float64)
     if tt.size < 3 or r.shape[-1] != tt.size:
         return np.zeros(r.shape), np.zeros(r.shape)
-    v = np.gradient(r, tt, axis=-1, edge_order=2)
-    a = np.gradient(v, tt, axis=-1, edge_order=2)
+    # the run's grid is uniform (k ts): differences over the step ts itself, not over the
+    # rounded sample times, so constant samples have exactly zero rates
+    h = float(tt[1] - tt[0]) if np.allclose(np.diff(tt), tt[1] - tt[0], rtol=1e-9, atol=0) \
+        else None
+    v = np.gradient(r, h if h is not None else tt, axis=-1, edge_order=2)
+    a = np.gradient(v, h if h is not None else tt, axis=-1, edge_order=2)
     return np.ascontiguousarray(v), np.ascontiguousarray(a)
