@@ -1,7 +1,9 @@
-"""Discrete-time controllers with explicit state: PID family, fuzzy PI, self-tuning fuzzy PI.
+"""Discrete-time controllers with explicit state: PID family, fuzzy PI, self-tuning fuzzy PI,
+sliding-mode control.
 
 Each controller's maths is a :class:`Law` declared once in its module (``pid.py``,
-``fuzzy_pi.py``), with its C port beside it (``pid.c``, ``fuzzy_pi.c``).
+``fuzzy_pi.py``, ``smc.py``), with its C port beside it (``pid.c``, ``fuzzy_pi.c``,
+``smc.c``).
 """
 
 from __future__ import annotations
@@ -26,6 +28,14 @@ from .pid import (
     pid_step,
 )
 from .self_tuning import SelfTuningFuzzyPIController
+from .smc import (
+    SMC_GAIN_NAMES,
+    SMC_LAW,
+    SlidingModeController,
+    SlidingModeState,
+    smc_model_gains,
+    smc_step,
+)
 
 __all__ = [
     "FUZZY_GAIN_NAMES",
@@ -33,6 +43,8 @@ __all__ = [
     "FUZZY_PI_LAW",
     "PID_GAIN_NAMES",
     "PID_LAW",
+    "SMC_GAIN_NAMES",
+    "SMC_LAW",
     "Controller",
     "Field",
     "FuzzyPIController",
@@ -43,9 +55,13 @@ __all__ = [
     "PIDState",
     "PackedController",
     "SelfTuningFuzzyPIController",
+    "SlidingModeController",
+    "SlidingModeState",
     "indices",
     "kernel",
     "p_controller",
     "pi_controller",
     "pid_step",
+    "smc_model_gains",
+    "smc_step",
 ]
