@@ -399,7 +399,7 @@ class SlidingModeController(LawController):
             positive = name in ("k_o", "omega_0")
             bad = ~(np.isfinite(col) & ((col > 0.0) if positive else (col >= 0.0)))
             if np.any(bad):
-                value = col[np.argmax(bad)]
+                value = float(col[np.argmax(bad)])
                 allowed = "finite and > 0" if positive else "finite and >= 0"
                 raise ParameterError(f"gain {name} must be {allowed}, got {value!r}")
 
