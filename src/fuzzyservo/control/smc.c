@@ -16,9 +16,9 @@ static fs_real fs_law_step(const fs_real *p, fs_real *s, fs_real r, fs_real y,
         rdd_prev = rdd;
         s[FS_S_STARTED] = 1;
     } else {
-        fs_real yp = s[FS_S_Y_PREV];
-        yf = p[FS_P_M11] * s[FS_S_Y_F] + p[FS_P_M12] * s[FS_S_V_F] + p[FS_P_N1] * (y + yp);
-        vf = p[FS_P_M21] * s[FS_S_Y_F] + p[FS_P_M22] * s[FS_S_V_F] + p[FS_P_N2] * (y + yp);
+        fs_real d = (y - s[FS_S_Y_F]) + (s[FS_S_Y_PREV] - s[FS_S_Y_F]);
+        yf = s[FS_S_Y_F] + p[FS_P_M12] * s[FS_S_V_F] + p[FS_P_N1] * d;
+        vf = p[FS_P_M22] * s[FS_S_V_F] + p[FS_P_N2] * d;
         rdd_prev = s[FS_S_RDD_PREV];
     }
     fs_real acc = p[FS_P_WF2] * (y - yf) - p[FS_P_CV] * vf;
@@ -108,9 +108,7 @@ static void fs_law_pack(fs_real *p, const double *g, const double *k)
     double det = 1.0 + cv * hh + q;
     p[FS_P_WF2] = (fs_real)wf2;
     p[FS_P_CV] = (fs_real)cv;
-    p[FS_P_M11] = (fs_real)((1.0 + cv * hh - q) / det);
     p[FS_P_M12] = (fs_real)(h / det);
-    p[FS_P_M21] = (fs_real)(-(wf2 * h) / det);
     p[FS_P_M22] = (fs_real)((1.0 - cv * hh - q) / det);
     p[FS_P_N1] = (fs_real)(q / det);
     p[FS_P_N2] = (fs_real)((wf2 * hh) / det);

@@ -49,9 +49,16 @@ and damping ζ_f::
 
 discretised by the trapezoidal rule (Tustin, exact for a piecewise-linear y, stable for every
 ω_f h): with x = (ŷ, ŷ') and x' = A x + B y,
-x_k = (I - A h/2)⁻¹ [(I + A h/2) x_{k-1} + (B h/2)(y_k + y_{k-1})], written out in closed form
-(m₁₁ ... n₂ below, the same arithmetic in :func:`smc_step` and ``smc.c``); the estimates at
-sample k are ŷ'_k = x₂ and ŷ''_k = ω_f² (y_k - ŷ_k) - 2 ζ_f ω_f ŷ'_k. The filter starts at the
+x_k = (I - A h/2)⁻¹ [(I + A h/2) x_{k-1} + (B h/2)(y_k + y_{k-1})]. Written out (Δ = 1 +
+ζ_f ω_f h + ω_f² h²/4, d_k = (y_k - ŷ_{k-1}) + (y_{k-1} - ŷ_{k-1}))::
+
+    ŷ_k  = ŷ_{k-1} + (h/Δ) ŷ'_{k-1} + (ω_f² h²/(4Δ)) d_k
+    ŷ'_k = ((1 - ζ_f ω_f h - ω_f² h²/4)/Δ) ŷ'_{k-1} + (ω_f² h/(2Δ)) d_k
+
+the same recursion in deviations from ŷ (so a constant y leaves the filter exactly at rest
+and the absolute position, 0.5 m, does not round the derivatives), with the same arithmetic
+in :func:`smc_step` and ``smc.c``; the estimates at sample k are ŷ'_k and
+ŷ''_k = ω_f² (y_k - ŷ_k) - 2 ζ_f ω_f ŷ'_k. The filter starts at the
 first measurement at rest (ŷ = y₀, ŷ' = 0: bumpless) and rdd_{-1} = rdd₀ (no jerk kick).
 
 Anti-windup of ∫e: clamping (conditional integration, as :mod:`fuzzyservo.control.pid`):
@@ -118,12 +125,10 @@ PARAMS = (
     Field("jerk_gain", "1/s", "r''' = jerk_gain (rdd_k - rdd_{k-1}): 1/h, or 0"),
     Field("wf2", "1/s²", "filter ω_f²"),
     Field("cv", "1/s", "filter 2 ζ_f ω_f"),
-    Field("m11", "-", "filter transition, ŷ from ŷ"),
     Field("m12", "s", "filter transition, ŷ from ŷ'"),
-    Field("m21", "1/s", "filter transition, ŷ' from ŷ"),
     Field("m22", "-", "filter transition, ŷ' from ŷ'"),
-    Field("n1", "-", "filter input gain of y_k + y_{k-1} to ŷ"),
-    Field("n2", "1/s", "filter input gain of y_k + y_{k-1} to ŷ'"),
+    Field("n1", "-", "filter gain of (y_k - ŷ) + (y_{k-1} - ŷ) to ŷ"),
+    Field("n2", "1/s", "filter gain of (y_k - ŷ) + (y_{k-1} - ŷ) to ŷ'"),
     Field("u_min", "-", "lower command limit"),
     Field("u_max", "-", "upper command limit"),
 )
@@ -173,9 +178,9 @@ def smc_step(p: Any, s: Any, r: float, y: float, aux: Any, rd: float, rdd: float
         rdd_prev = rdd
         s[S.started] = 1.0
     else:
-        yp = s[S.y_prev]
-        yf = p[P.m11] * s[S.y_f] + p[P.m12] * s[S.v_f] + p[P.n1] * (y + yp)
-        vf = p[P.m21] * s[S.y_f] + p[P.m22] * s[S.v_f] + p[P.n2] * (y + yp)
+        d = (y - s[S.y_f]) + (s[S.y_prev] - s[S.y_f])
+        yf = s[S.y_f] + p[P.m12] * s[S.v_f] + p[P.n1] * d
+        vf = p[P.m22] * s[S.v_f] + p[P.n2] * d
         rdd_prev = s[S.rdd_prev]
     acc = p[P.wf2] * (y - yf) - p[P.cv] * vf
     e = r - y
@@ -246,9 +251,7 @@ def _pack(g: FloatArray, k: FloatArray) -> FloatArray:
     det = 1.0 + cv * hh + q
     out[:, P.wf2] = wf2
     out[:, P.cv] = cv
-    out[:, P.m11] = (1.0 + cv * hh - q) / det
     out[:, P.m12] = h / det
-    out[:, P.m21] = -(wf2 * h) / det
     out[:, P.m22] = (1.0 - cv * hh - q) / det
     out[:, P.n1] = q / det
     out[:, P.n2] = (wf2 * hh) / det
