@@ -53,6 +53,9 @@ class CStep:
         self._step = getattr(self.dll, f"{n}_step")
         self._step.argtypes = [ctypes.c_void_p, real, real]
         self._step.restype = real
+        self._step_ff = getattr(self.dll, f"{n}_step_ff")
+        self._step_ff.argtypes = [ctypes.c_void_p, real, real, real, real]
+        self._step_ff.restype = real
         self._reset = getattr(self.dll, f"{n}_reset")
         self._reset.argtypes = [ctypes.c_void_p, real, real]
         self._reset.restype = None
@@ -74,12 +77,19 @@ class CStep:
         arr = (ctypes.c_double * len(gains))(*gains)
         return int(self._set(self.buf, arr))
 
-    def replay(self, r: Any, y: Any, y0: float, u0: float, gains: list[float] | None = None
-               ) -> np.ndarray:
+    def step_ff(self, r: float, rd: float, rdd: float, y: float) -> float:
+        return float(self._step_ff(self.buf, r, rd, rdd, y))
+
+    def replay(self, r: Any, y: Any, y0: float, u0: float, gains: list[float] | None = None,
+               rates: tuple[Any, Any] | None = None) -> np.ndarray:
         """Commands for the measured samples (r_k, y_k) of a run, from the bumpless start
-        with the exported gains, or with ``gains`` (set through NAME_set_gains)."""
+        with the exported gains, or with ``gains`` (set through NAME_set_gains); with
+        ``rates`` (the run's rd_k, rdd_k) through NAME_step_ff."""
         self.init(y0, u0)
         if gains is not None:
             assert self.set_gains(gains) == 0
             self.reset(y0, u0)
+        if rates is not None:
+            return np.array([self.step_ff(float(a), float(v), float(w), float(b))
+                             for a, v, w, b in zip(r, *rates, y, strict=True)])
         return np.array([self.step(float(a), float(b)) for a, b in zip(r, y, strict=True)])

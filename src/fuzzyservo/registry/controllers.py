@@ -551,12 +551,12 @@ _CONTROLLERS: dict[str, ControllerKind] = {
     # unit command: a reaching rate beyond it is one the valve cannot give, the switching
     # term alone then spans the command range outside the layer and only k_s/φ acts (a flat
     # direction of the cost: with an upper end of 1e4 two tunings ended at k_s = 2656 and
-    # 4650 with the same k_s/φ = 39.3 1/s and cost), down to 1 m/s³; φ from 1e-3 m/s² (near the ideal relay) to 1e3 m/s² (above
-    # s(0) = λ² x 0.1 m for every λ of the box up to 100: a layer wider than the step's s is a
-    # linear law). The filter (ω_f = 200 rad/s, 10 x ω₀ and below the valve's mode; ζ_f = 1)
-    # is held: the tuner's cost sees no measurement noise, so it would widen the filter
-    # without limit. The model's K_o, ω₀, δ are held at the paper's linear model
-    # (smc_model_gains): the tuner fits a controller, not the model.
+    # 4650 with the same k_s/φ = 39.3 1/s and cost), down to 1 m/s³; φ from 1e-3 m/s² (near
+    # the ideal relay) to 1e3 m/s² (above s(0) = λ² x 0.1 m for every λ of the box up to 100:
+    # a layer wider than the step's s is a linear law). The filter (ω_f = 200 rad/s, 10 x ω₀
+    # and below the valve's mode; ζ_f = 1) is held: the tuner's cost sees no measurement
+    # noise, so it would widen the filter without limit. The model's K_o, ω₀, δ are held at
+    # the paper's linear model (smc_model_gains): the tuner fits a controller, not the model.
     "smc": ControllerKind(
         name="smc", title="sliding-mode control", cls=SlidingModeController,
         gains=(GainSpec(name="lam", unit="1/s", description="sliding-surface bandwidth λ",
