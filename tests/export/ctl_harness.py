@@ -81,18 +81,15 @@ class CStep:
         return float(self._step_ff(self.buf, r, rd, rdd, y))
 
     def replay(self, r: Any, y: Any, y0: float, u0: float, gains: list[float] | None = None,
-               *, rd: Any = None, rdd: Any = None) -> np.ndarray:
+               rates: tuple[Any, Any] | None = None) -> np.ndarray:
         """Commands for the measured samples (r_k, y_k) of a run, from the bumpless start
-        with the exported gains, or with ``gains`` (set through NAME_set_gains); with the
-        reference's rates ``rd``, ``rdd`` through NAME_step_ff."""
+        with the exported gains, or with ``gains`` (set through NAME_set_gains); with
+        ``rates`` (the run's rd_k, rdd_k) through NAME_step_ff."""
         self.init(y0, u0)
         if gains is not None:
             assert self.set_gains(gains) == 0
             self.reset(y0, u0)
-        if rd is None and rdd is None:
-            return np.array([self.step(float(a), float(b))
-                             for a, b in zip(r, y, strict=True)])
-        rd = np.zeros(len(r)) if rd is None else rd
-        rdd = np.zeros(len(r)) if rdd is None else rdd
-        return np.array([self.step_ff(float(a), float(b), float(c), float(d))
-                         for a, b, c, d in zip(r, rd, rdd, y, strict=True)])
+        if rates is not None:
+            return np.array([self.step_ff(float(a), float(v), float(w), float(b))
+                             for a, v, w, b in zip(r, *rates, y, strict=True)])
+        return np.array([self.step(float(a), float(b)) for a, b in zip(r, y, strict=True)])

@@ -72,6 +72,15 @@ def _run(kind: str, gains: dict[str, float], plant_name: str, *, options: dict[s
     return plant, simulate(ctl, plant, ref, duration=DURATION)
 
 
+def _rates(kind: str, reference: np.ndarray | float, res: Any) -> tuple[Any, Any] | None:
+    """The reference's rates the run's law saw (sim.references.reference_rates of the same
+    samples), for a law with feed-forward (replayed through NAME_step_ff); None otherwise."""
+    if not controller_kind(kind).cls.law.feedforward:
+        return None
+    ref = reference if isinstance(reference, np.ndarray) else np.full(res.t.size, reference)
+    return reference_rates(ref, res.t)
+
+
 def _compiled(kind: str, gains: dict[str, float], folder: Path, *, options: dict[str, Any],
               systems: dict[str, Any] | None, real: str = "double",
               name: str | None = None) -> CStep:
@@ -82,8 +91,8 @@ def _compiled(kind: str, gains: dict[str, float], folder: Path, *, options: dict
 
 def _gains_files() -> list[Path]:
     files = sorted(GAINS.glob("*.toml"))
-    # the study's 12, the two robust self-tuning fuzzy PIs and the position controller with
-    # feed-forward on each plant
+    # the study's 12, the two robust self-tuning fuzzy PIs and the baselines (ffpd, smc) on
+    # 2 plants
     assert len(files) == 16
     return files
 
@@ -98,11 +107,8 @@ def test_committed_gains_on_both_plants(path: Path, tmp_path: Path) -> None:
         for ref in (0.1, -0.2):
             plant, res = _run(g.controller, dict(g.gains), plant_name, options={},
                               systems=None, reference=ref)
-            # a feed-forward law sees the rates simulate made of the samples (not exactly 0
-            # for constant samples: np.gradient over the rounded sample times, ~1e-11 m/s²)
-            rd, rdd = (reference_rates(np.full(res.t.size, ref), res.t)
-                       if controller_kind(g.controller).cls.law.feedforward else (None, None))
-            u = c.replay(res.r, res.y, plant.y0, plant.u0, rd=rd, rdd=rdd)
+            u = c.replay(res.r, res.y, plant.y0, plant.u0,
+                         rates=_rates(g.controller, ref, res))
             assert np.all(np.isfinite(u))
             worst = max(worst, float(np.max(np.abs(u - res.u))))
     assert worst <= DOUBLE_TOL, worst
@@ -141,6 +147,9 @@ def _random_options(kind_name: str, rng: np.random.Generator) -> dict[str, Any]:
         opts["initial_error"] = str(rng.choice(["zero", "first"]))
         opts["de_per"] = str(rng.choice(["sample", "second"]))
         opts["filter_time"] = float(rng.choice([0.0, 0.003]))
+    if "integral_action" in kind.options:
+        opts["integral_action"] = str(rng.choice(["off", "on"]))
+        opts["reference_jerk"] = str(rng.choice(["difference", "zero"]))
     if rng.uniform() < 0.3:
         opts["u_min"], opts["u_max"] = -0.6, 0.8
     return opts
@@ -169,7 +178,8 @@ def test_random_gains_options_and_references(kind: str, tmp_path: Path) -> None:
                 rd, rdd = (reference_rates(ref, res.t) if controller_kind(kind).cls.law
                            .feedforward else (None, None))
                 u = c.replay(res.r, res.y, plant.y0, plant.u0,
-                             gains=None if j == 0 else kind_gains, rd=rd, rdd=rdd)
+                             gains=None if j == 0 else kind_gains,
+                             rates=_rates(kind, ref, res))
                 worst = max(worst, float(np.max(np.abs(u - res.u))))
     assert worst <= DOUBLE_TOL, worst
 

@@ -49,7 +49,7 @@ def test_committed_gain_files_load() -> None:
     files = sorted(GAINS_DIR.glob("*.toml"))
     # 6 designs of the paper study (study.runner.GAIN_FILES) x 2 plants, and the self-tuning
     # fuzzy PI tuned on each plant's C8 robust set (tune --robust; tests/sweep/test_robust.py),
-    # and the position controller with feed-forward (tune --controller ffpd) on each plant
+    # and the baselines beside them (issue 25: ffpd, smc) on each plant
     assert len(files) == 16
     for f in files:
         t = read_gains_toml(f)

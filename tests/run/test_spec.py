@@ -125,7 +125,8 @@ def test_the_cli_the_page_and_the_sweep_take_exactly_the_declared_options(
     flags = _cli_flags()
     assert {o.flag for o in controller_options()} <= flags
     # no flag of the command looks like an option the registry does not declare
-    known = {"--anti-windup", "--initial-error", "--de-per", "--filter-time"}
+    known = {"--anti-windup", "--initial-error", "--de-per", "--filter-time",
+             "--integral-action", "--reference-jerk"}
     assert known == {o.flag for o in controller_options()}
     pytest.importorskip("panel")
     from fuzzyservo.app.page import ServoPage

@@ -1,9 +1,9 @@
 """Discrete-time controllers with explicit state: PID family, fuzzy PI, self-tuning fuzzy PI,
-position control with feed-forward.
+position control with feed-forward, sliding-mode control.
 
 Each controller's maths is a :class:`Law` declared once in its module (``pid.py``,
-``fuzzy_pi.py``, ``ffpd.py``), with its C port beside it (``pid.c``, ``fuzzy_pi.c``,
-``ffpd.c``).
+``fuzzy_pi.py``, ``ffpd.py``, ``smc.py``), with its C port beside it (``pid.c``,
+``fuzzy_pi.c``, ``ffpd.c``, ``smc.c``).
 """
 
 from __future__ import annotations
@@ -36,6 +36,14 @@ from .pid import (
     pid_step,
 )
 from .self_tuning import SelfTuningFuzzyPIController
+from .smc import (
+    SMC_GAIN_NAMES,
+    SMC_LAW,
+    SlidingModeController,
+    SlidingModeState,
+    smc_model_gains,
+    smc_step,
+)
 
 __all__ = [
     "FFPD_GAIN_NAMES",
@@ -45,6 +53,8 @@ __all__ = [
     "FUZZY_PI_LAW",
     "PID_GAIN_NAMES",
     "PID_LAW",
+    "SMC_GAIN_NAMES",
+    "SMC_LAW",
     "Controller",
     "FFPDController",
     "FFPDState",
@@ -59,9 +69,13 @@ __all__ = [
     "SelfTuningFuzzyPIController",
     "ffpd_model_gains",
     "ffpd_step",
+    "SlidingModeController",
+    "SlidingModeState",
     "indices",
     "kernel",
     "p_controller",
     "pi_controller",
     "pid_step",
+    "smc_model_gains",
+    "smc_step",
 ]
