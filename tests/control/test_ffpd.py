@@ -289,7 +289,7 @@ def test_c_step_ff_equals_python(tmp_path: object, real: str) -> None:
         res = simulate(build_controller("ffpd", gains, dt=H), plant, ref, duration=1.0)
         rd, rdd = ref.rates(res.t)
         assert np.max(np.abs(rdd)) > 1.0  # the feed-forward path is exercised
-        u = c.replay(res.r, res.y, plant.y0, plant.u0, rd=rd, rdd=rdd)
+        u = c.replay(res.r, res.y, plant.y0, plant.u0, rates=(rd, rdd))
         worst = max(worst, float(np.max(np.abs(u - res.u))))
     # double: a line-by-line port (tests/export/test_controller_c.py's bound); float: y near
     # 0.5 m is quantised to 6e-8 m and the acceleration path multiplies a change of y by

@@ -93,7 +93,7 @@ def _gains_files() -> list[Path]:
     files = sorted(GAINS.glob("*.toml"))
     # the study's 12, the two robust self-tuning fuzzy PIs and the baselines (ffpd, smc) on
     # 2 plants
-    assert len(files) == 16
+    assert len(files) == 18
     return files
 
 
