@@ -20,6 +20,7 @@ from tqdm import tqdm
 
 from .. import __version__
 from ..errors import InputError, OutputError, ParameterError
+from ..study.frequency import FrequencyConfig
 from ..study.paper_study import TRACKING_KEYS, StudyConfig
 from ..study.runner import GAIN_FILES, PLANTS, reproduce
 from ..study.tracking import TrackingConfig
@@ -80,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = StudyConfig(params=params, set_name=set_name(args), duration=args.duration,
                       systems=from_files,
                       no_rule_value=getattr(args, "no_rule_value", None) if from_files else None,
-                      tracking=TrackingConfig())
+                      tracking=TrackingConfig(), frequency=FrequencyConfig())
     plants = PLANTS if args.plant == "both" else (args.plant,)
     if args.c8_samples is not None and not 0 <= args.c8_samples <= 100_000:
         raise ParameterError(f"--c8-samples must be an integer in [0, 100000], got "
@@ -89,9 +90,10 @@ def run(args: argparse.Namespace) -> int:
     # or systems they would not be this study's controllers, so they are left out (a note)
     custom = bool(args.retune or args.gains_dir is not None or params_given(args) or from_files)
     sweeps = args.c8_samples != 0 and not custom
-    # stages per plant: nominal runs, delay sweep, changed plants, one per design of the
-    # tracking study; the tunings with --retune; C8's sweep; then figure 3 and the report
-    n_track = len(TRACKING_KEYS)
+    # stages per plant: nominal runs, delay sweep, changed plants, two per design of the
+    # tracking study (its runs, its frequency response); the tunings with --retune; C8's
+    # sweep; then figure 3 and the report
+    n_track = 2 * len(TRACKING_KEYS)
     total = len(plants) * (3 + n_track + (len(GAIN_FILES) - 2 if args.retune else 0)
                            + int(sweeps)) + 2
     quiet = args.quiet

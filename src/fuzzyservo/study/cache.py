@@ -28,6 +28,7 @@ from .._io import atomic_write, npz_inflation
 from .._typing import FloatArray
 from ..sim import SimResult
 from .claims import Claim, Value
+from .frequency import FrequencyStudy
 from .paper_study import ControllerCase, PlantStudy
 from .tracking import TrackingStudy
 
@@ -81,6 +82,21 @@ def save_study(path: str | Path, study: PlantStudy, *, key: str, version: str) -
             "cases": [[c.key, c.label, c.kind, c.gains] for c in study.tracking_cases],
             "runs": [[name, _put_run(arrays, f"tracking/{i}", r)]
                      for i, (name, r) in enumerate(tr.runs.items())]}
+    fq = study.frequency
+    meta["frequency"] = None
+    if fq is not None:
+        arrays["frequency/f"] = np.asarray(fq.frequency, dtype=np.float64)
+        arrays["frequency/fm"] = np.asarray(fq.measured_frequency, dtype=np.float64)
+        for i, k in enumerate(fq.keys):
+            arrays[f"frequency/{i}/mag"] = np.asarray(fq.magnitude_db[k], dtype=np.float64)
+            arrays[f"frequency/{i}/phase"] = np.asarray(fq.phase_deg[k], dtype=np.float64)
+            if k in fq.measured_db:
+                arrays[f"frequency/{i}/mdb"] = np.asarray(fq.measured_db[k], dtype=np.float64)
+                arrays[f"frequency/{i}/mph"] = np.asarray(fq.measured_phase_deg[k],
+                                                          dtype=np.float64)
+        meta["frequency"] = {"keys": list(fq.keys), "analytic_plant": fq.analytic_plant,
+                             "margins": fq.margins, "amplitude": fq.amplitude,
+                             "measured": sorted(fq.measured_db)}
     with atomic_write(path, binary=True) as fh:
         entries: dict[str, Any] = {"meta": np.array(json.dumps(meta)), **arrays}
         np.savez(fh, **entries)
@@ -191,6 +207,27 @@ def load_study(path: str | Path, *, key: str, version: str) -> PlantStudy:
                     load_force=float(tm["load_force"]),
                     runs={str(name): _get_run(z, f"tracking/{i}", m)
                           for i, (name, m) in enumerate(tm["runs"])})
+            frequency = None
+            fm_ = meta.get("frequency")
+            if fm_ is not None:
+                f = _array(z, "frequency/f")
+                fmeas = _array(z, "frequency/fm")
+                fkeys = tuple(str(k) for k in fm_["keys"])
+                measured = set(fm_["measured"])
+                frequency = FrequencyStudy(
+                    plant=str(meta["plant"]), analytic_plant=str(fm_["analytic_plant"]),
+                    keys=fkeys, frequency=f,
+                    magnitude_db={k: _array(z, f"frequency/{i}/mag", f.shape)
+                                  for i, k in enumerate(fkeys)},
+                    phase_deg={k: _array(z, f"frequency/{i}/phase", f.shape)
+                               for i, k in enumerate(fkeys)},
+                    margins={str(k): _floats(m) for k, m in fm_["margins"].items()},
+                    measured_frequency=fmeas,
+                    measured_db={k: _array(z, f"frequency/{i}/mdb", fmeas.shape)
+                                 for i, k in enumerate(fkeys) if k in measured},
+                    measured_phase_deg={k: _array(z, f"frequency/{i}/mph", fmeas.shape)
+                                        for i, k in enumerate(fkeys) if k in measured},
+                    amplitude=float(fm_["amplitude"]))
             study = PlantStudy(
                 plant=str(meta["plant"]), cases=cases, runs=runs,
                 metrics={str(k): _floats(v) for k, v in meta["metrics"].items()},
@@ -202,7 +239,7 @@ def load_study(path: str | Path, *, key: str, version: str) -> PlantStudy:
                                  for v, d in meta["variant_metrics"].items()},
                 variant_runs=variant_runs,
                 claims=[_claim(c) for c in meta["claims"]], tracking=tracking,
-                tracking_cases=t_cases)
+                tracking_cases=t_cases, frequency=frequency)
     except CacheEntryError:
         raise
     except FileNotFoundError:

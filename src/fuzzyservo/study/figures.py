@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._typing import FloatArray
 from ..files.html import Figure
 from ..plots.study_figures import (
     Curve,
@@ -32,6 +33,7 @@ from ..plots.study_figures import (
     step_figure,
     tracking_figure,
 )
+from .frequency import FrequencyStudy
 from .paper_study import DESIGN_COLOURS, PlantStudy, StudyConfig
 
 if TYPE_CHECKING:
@@ -39,14 +41,17 @@ if TYPE_CHECKING:
 
     from ..fuzzy import FuzzySystem, Variable
 
-__all__ = ["FIGURE_STEMS", "NEAR_FRACTION", "OVERSHOOT_LIMIT_PCT", "TRACKING_STEMS",
-           "PlannedFigure", "fig3_captions", "figure_files", "figure_plan", "study_figures"]
+__all__ = ["FIGURE_STEMS", "FREQUENCY_STEMS", "NEAR_FRACTION", "OVERSHOOT_LIMIT_PCT",
+           "TRACKING_STEMS", "PlannedFigure", "fig3_captions", "figure_files", "figure_plan",
+           "study_figures"]
 
 #: The figures of one plant, without the ``_{plant}`` suffix, in the report's order.
 FIGURE_STEMS: tuple[str, ...] = ("fig4", "fig5", "fig6", "fig7", "fig8",
                                  "fig8_delay_overshoot", "fig8_delay_settling", "robustness")
 #: The tracking study's figures of one plant (when it runs), after :data:`FIGURE_STEMS`.
 TRACKING_STEMS: tuple[str, ...] = ("tracking_sine", "tracking_move", "tracking_load")
+#: The frequency responses' figure of one plant (when they run), last.
+FREQUENCY_STEMS: tuple[str, ...] = ("bode",)
 
 #: Curves of Figs. 4 and 7 closer than this fraction of the step over the whole run are
 #: marked as coinciding (2 %: the settling band; closer than that they look like one line).
@@ -133,10 +138,12 @@ def fig3_captions(du: FuzzySystem, alpha: FuzzySystem) -> dict[str, str]:
     }
 
 
-def figure_files(plant: str, out: Path, *, tracking: bool = False) -> list[Path]:
+def figure_files(plant: str, out: Path, *, tracking: bool = False,
+                 frequency: bool = False) -> list[Path]:
     """Every file :func:`study_figures` writes for ``plant`` into ``out``, in order (with
-    the tracking study's when it ran)."""
-    stems = FIGURE_STEMS + (TRACKING_STEMS if tracking else ())
+    the tracking study's and the frequency responses' when they ran)."""
+    stems = (FIGURE_STEMS + (TRACKING_STEMS if tracking else ())
+             + (FREQUENCY_STEMS if frequency else ()))
     return [Path(out) / f"{s}_{plant}.{fmt}" for s in stems for fmt in ("png", "svg")]
 
 
@@ -262,7 +269,60 @@ def figure_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:
                             y0=y0))
     if study.tracking is not None:
         plan.extend(_tracking_plan(study, cfg))
+    if study.frequency is not None:
+        plan.append(_bode_plan(study))
     return plan
+
+
+def _bode_plan(study: PlantStudy) -> PlannedFigure:
+    """The frequency responses' figure: every design's analytic |T| and ∠T, and on the
+    nonlinear plant the measured points."""
+    from ..plots.frequency import BodeCurve, bode_figure
+
+    fq = study.frequency
+    assert fq is not None
+    p = study.plant
+    cases = {c.key: c for c in study.tracking_cases}
+    empty = np.empty(0)
+    curves = []
+    for key in fq.keys:
+        has_m = key in fq.measured_db
+        curves.append(BodeCurve(
+            label=cases[key].label, colour=cases[key].colour, frequency=fq.frequency,
+            magnitude_db=fq.magnitude_db[key], phase_deg=fq.phase_deg[key],
+            measured_frequency=fq.measured_frequency if has_m else empty,
+            measured_db=fq.measured_db[key] if has_m else empty,
+            measured_phase_deg=_near_phase(fq, key) if has_m else empty,
+            bandwidth=fq.margins[key]["bandwidth"]))
+    unstable = [cases[k].label for k in fq.keys if fq.margins[k]["stable"] == 0.0]
+    model = ("eq. (8), the plant itself" if fq.analytic_plant == "linear"
+             else "the small-signal model of the nonlinear plant at mid-stroke")
+    text = (f"Closed-loop frequency response, {p} plant: |T| and ∠T from the reference to the "
+            f"position, lines analytic (each controller linearised at rest, its feed-forward "
+            f"included, on {model}; the loop the simulator runs, sampling and hold included)")
+    if fq.measured_frequency.size:
+        text += (f"; markers measured on the nonlinear plant with sines of "
+                 f"{fq.amplitude * 1e3:g} mm (where they leave the lines the small-signal "
+                 f"model no longer describes the loop)")
+    text += "."
+    if unstable:
+        text += (f" Unstable in the small-signal limit (the loop's linearisation has a pole "
+                 f"outside the unit circle; at larger amplitude a limit cycle): "
+                 f"{', '.join(unstable)}.")
+    return PlannedFigure(f"bode_{p}", text, lambda: bode_figure(
+        curves, f"Closed-loop frequency response ({p} plant)"))
+
+
+def _near_phase(fq: FrequencyStudy, key: str) -> FloatArray:
+    """Measured phases shifted by whole turns to lie nearest the analytic curve."""
+    f = fq.frequency
+    ph = fq.phase_deg[key]
+    mf = fq.measured_frequency
+    mph = fq.measured_phase_deg[key]
+    if not np.all(np.isfinite(ph)):
+        return np.asarray(mph)
+    near = np.interp(np.log(mf), np.log(f), ph)
+    return np.asarray(mph + 360.0 * np.round((near - mph) / 360.0))
 
 
 def _tracking_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:

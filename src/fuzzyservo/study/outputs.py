@@ -15,6 +15,7 @@ from ..paper.departures import DEPARTURES
 from ..plant import linearize, to_dict
 from .claims import CLAIM_SHORT, HOLDS, NOT_HOLDS, PARTLY, Claim, summarize
 from .figures import fig3_captions, study_figures
+from .frequency import MARGIN_FIELDS
 from .paper_study import TUNED_AS, PlantStudy, StudyConfig, design_name
 
 __all__ = ["METRIC_COLUMNS", "TRACKING_COLUMNS", "trace_files", "write_outputs"]
@@ -190,6 +191,8 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
     written.append(metrics_csv)
     if any(s.tracking is not None for s in studies):
         written.append(_write_tracking_csv(out / "tracking.csv", studies))
+    if any(s.frequency is not None for s in studies):
+        written.append(_write_frequency_csv(out / "frequency.csv", studies))
 
     claims = [c.as_dict() for s in studies for c in s.claims]
     claims_json = write_text_atomic(out / "claims.json", strict_json(claims, indent=2) + "\n")
@@ -219,10 +222,13 @@ def write_outputs(out: Path, cfg: StudyConfig, studies: Sequence[PlantStudy],
                     Table(["controller", "settles at every delay up to [ms]",
                            "fails (no 2 % settling in the run) at [ms]"], margin_rows,
                           caption="Delay sweep, gains fixed")],
-            figures=[f for f in figs if not f.png.name.startswith("tracking_")]))
+            figures=[f for f in figs if not f.png.name.startswith(("tracking_", "bode_"))]))
         if s.tracking is not None:
             sections.append(_tracking_section(
                 s, cfg, [f for f in figs if f.png.name.startswith("tracking_")]))
+        if s.frequency is not None:
+            sections.append(_frequency_section(
+                s, [f for f in figs if f.png.name.startswith("bode_")]))
     captions = fig3_captions(du_system(), alpha_system())
     sections.append(Section(
         "Fig. 3: membership functions, rule tables and control surfaces",
@@ -346,4 +352,60 @@ def _tracking_section(s: PlantStudy, cfg: StudyConfig, figures: list[Figure]) ->
                 Table(["controller", "largest deviation [mm]", "recovery time [s]",
                        "remaining deviation [mm]"], load_rows,
                       caption="Load-force step at rest")],
+        figures=figures)
+
+
+def _write_frequency_csv(path: Path, studies: Sequence[PlantStudy]) -> Path:
+    """frequency.csv: per plant and design, the analytic loop's margins and closed-loop
+    figures (:data:`~fuzzyservo.study.frequency.MARGIN_FIELDS`), every digit."""
+    with atomic_write(path) as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(["plant", "controller", "label", "analytic model"]
+                   + [f"{n} [{u}]" for n, u in MARGIN_FIELDS])
+        for s in studies:
+            fq = s.frequency
+            if fq is None:
+                continue
+            labels = {c.key: c.label for c in s.tracking_cases}
+            for key in fq.keys:
+                w.writerow([s.plant, key, labels[key], fq.analytic_plant]
+                           + [repr(float(fq.margins[key][n])) for n, _ in MARGIN_FIELDS])
+    return path
+
+
+def _frequency_section(s: PlantStudy, figures: list[Figure]) -> Section:
+    """The report's section of a plant's frequency responses: the margins table and the
+    Bode figure."""
+    fq = s.frequency
+    assert fq is not None
+    labels = {c.key: c.label for c in s.tracking_cases}
+
+    def cell(v: float, scale: float = 1.0) -> object:
+        return "none" if math.isinf(v) else ("n/a" if math.isnan(v) else v * scale)
+
+    rows = []
+    for key in fq.keys:
+        m = fq.margins[key]
+        rows.append([labels[key], "yes" if m["stable"] == 1.0 else (
+            "n/a" if math.isnan(m["stable"]) else "no"), cell(m["gain_margin"]),
+            cell(m["phase_crossover"]), cell(m["phase_margin_deg"]),
+            cell(m["gain_crossover"]), cell(m["modulus_margin"]), cell(m["bandwidth"]),
+            cell(m["peak_db"])])
+    model = ("eq. (8) itself" if fq.analytic_plant == "linear"
+             else "the small-signal model of the nonlinear plant at mid-stroke")
+    paras = [f"Each design linearised at rest (feed-forward included) on {model}, in the "
+             f"sampled loop the simulator runs (docs/frequency.md). The loop L is broken at "
+             f"the plant input; gain margin 1/|L| at ∠L = -180°, phase margin at |L| = 1, "
+             f"modulus margin min |1 + L|; bandwidth: where |T| first falls 3 dB below its "
+             f"low-frequency value; peak: the largest |T|. frequency.csv has every digit."]
+    if fq.measured_frequency.size:
+        paras.append(f"On the nonlinear plant the figure also shows |T| and ∠T measured by "
+                     f"simulation with sines of {fq.amplitude * 1e3:g} mm at "
+                     f"{', '.join(f'{f:g}' for f in fq.measured_frequency)} Hz.")
+    return Section(
+        f"Frequency response on the {s.plant} plant", paragraphs=paras,
+        tables=[Table(["controller", "stable", "gain margin [-]", "phase crossover [Hz]",
+                       "phase margin [deg]", "gain crossover [Hz]", "modulus margin [-]",
+                       "bandwidth (-3 dB) [Hz]", "peak |T| [dB]"], rows,
+                      caption="Margins of the linearised loops")],
         figures=figures)

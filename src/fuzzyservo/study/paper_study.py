@@ -41,6 +41,7 @@ from .claims import (
     evaluate_claims,
     transient_window,
 )
+from .frequency import FrequencyConfig, FrequencyStudy, run_frequency_study
 from .tracking import (
     BASELINE_DESIGNS,
     TrackingConfig,
@@ -143,6 +144,9 @@ class StudyConfig:
     tracking : TrackingConfig or None
         The tracking and disturbance study (claim C9) with these experiments; None: not run
         (``fuzzyservo reproduce`` runs it with the defaults of :class:`TrackingConfig`).
+    frequency : FrequencyConfig or None
+        The closed loops' frequency responses of the tracking study's designs; None: not run
+        (``fuzzyservo reproduce`` runs them with the defaults of :class:`FrequencyConfig`).
     """
 
     params: ServoParams
@@ -159,6 +163,7 @@ class StudyConfig:
     systems: tuple[tuple[str, Any], ...] = ()
     no_rule_value: float | None = None
     tracking: TrackingConfig | None = None
+    frequency: FrequencyConfig | None = None
 
     def __post_init__(self) -> None:
         for role, _ in self.systems:
@@ -326,6 +331,7 @@ class PlantStudy:
     claims: list[Claim] = field(default_factory=list)
     tracking: TrackingStudy | None = None  # the tracking and disturbance study, if run
     tracking_cases: tuple[ControllerCase, ...] = ()  # its designs: cases, then baselines
+    frequency: FrequencyStudy | None = None  # the frequency responses, if run
 
 
 def _failed(settling: float, diverged: bool) -> bool:
@@ -423,21 +429,27 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
         variant_traces={name: _trace(r) for name, r in var_runs.items()})
     tracking: TrackingStudy | None = None
     t_cases: list[ControllerCase] = []
-    if cfg.tracking is not None:
+    if cfg.tracking is not None or cfg.frequency is not None:
         t_cases = [*cases, *baseline_cases(tuned)]
-        by_key = {c.key: c for c in t_cases}
+    by_key = {c.key: c for c in t_cases}
+    if cfg.tracking is not None:
         tracking = run_tracking_study(
             kind, lambda key: cfg.run_spec(kind, by_key[key]), [c.key for c in t_cases],
             cfg.tracking, params=cfg.params, systems=systems, tick=tick)
         claims.append(tracking_claim(tracking, {c.key: c.label for c in t_cases},
                                      subject="stfpi", capacity=cfg.params.velocity_gain,
                                      tcfg=cfg.tracking))
+    frequency: FrequencyStudy | None = None
+    if cfg.frequency is not None:
+        frequency = run_frequency_study(
+            kind, lambda key: cfg.run_spec(kind, by_key[key]), [c.key for c in t_cases],
+            cfg.frequency, params=cfg.params, systems=systems, tick=tick)
     return PlantStudy(plant=kind, cases=tuple(cases), runs=runs, metrics=metrics,
                       delayed=delayed, delayed_metrics=delayed_metrics, delays=delays,
                       sweep=sweep, delay_margins=margins, delay_failures=failures,
                       variant_metrics=var_metrics,
                       variant_runs=var_runs, claims=claims, tracking=tracking,
-                      tracking_cases=tuple(t_cases))
+                      tracking_cases=tuple(t_cases), frequency=frequency)
 
 
 def baseline_cases(tuned: Mapping[str, Design]) -> list[ControllerCase]:

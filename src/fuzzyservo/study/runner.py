@@ -214,6 +214,8 @@ def _settings(cfg: StudyConfig) -> dict[str, Any]:
            if f.name not in ("params", "systems", "no_rule_value")}
     out["tracking"] = (dataclasses.asdict(cfg.tracking) if cfg.tracking is not None
                        else None)
+    out["frequency"] = (dataclasses.asdict(cfg.frequency) if cfg.frequency is not None
+                        else None)
     if cfg.systems:  # a system by its values' digest (absent: the paper's, as before)
         out["systems"] = {role: s.digest for role, s in cfg.systems}
         out["no_rule_value"] = cfg.no_rule_value
@@ -473,7 +475,8 @@ def _reproduce(out: Path, cfg: StudyConfig, *, gains_dir: Path | None, retune_ga
     figure_keys.update({plant: _figure_key(plant, version, cfg, _gain_paths(plant, gains_src))
                         for plant in plants})
     figure_groups = {"fig3": fig3_files(out, FIG3_FORMATS)}
-    figure_groups.update({plant: figure_files(plant, out, tracking=cfg.tracking is not None)
+    figure_groups.update({plant: figure_files(plant, out, tracking=cfg.tracking is not None,
+                                              frequency=cfg.frequency is not None)
                           for plant in plants})
     kept = {g for g, files in figure_groups.items()
             if not force and reusable(before, out, g, figure_keys[g], files, digest=digests)}
