@@ -176,14 +176,14 @@ def test_a_user_option_reaches_every_front_end() -> None:
 def test_the_study_draws_each_design_in_its_kinds_colour() -> None:
     """The kinds' colours are declared once, in the registry: the study draws a design in its
     kind's colour, and only a design that shares its kind with another has one of its own;
-    no two designs of the study share a colour."""
+    no two designs of the study (the tracking study's baselines included) share a colour."""
     from fuzzyservo.registry import controller_names
-    from fuzzyservo.study.paper_study import DESIGN_COLOURS, study_cases
+    from fuzzyservo.study.paper_study import DESIGN_COLOURS, baseline_cases, study_cases
     from fuzzyservo.study.runner import default_gains_dir, load_tuned
 
     designs = {k: (v.controller, dict(v.gains))
                for k, v in load_tuned("linear", default_gains_dir()).items()}
-    cases = study_cases(designs)
+    cases = [*study_cases(designs), *baseline_cases(designs)]  # the tracking study's
     kinds = [c.kind for c in cases]
     for c in cases:
         if c.key in DESIGN_COLOURS:
@@ -193,7 +193,7 @@ def test_the_study_draws_each_design_in_its_kinds_colour() -> None:
     drawn = [c.colour for c in cases] + [DESIGN_COLOURS["stfpi_delay"]]  # + Fig. 8's
     assert len(set(drawn)) == len(drawn)
     assert len({controller_colour(n) for n in controller_names()}) == len(controller_names())
-    assert controller_colour("no-such-kind") == "#17becf"  # the fallback's first
+    assert controller_colour("no-such-kind") == "#aec7e8"  # the fallback's first
 
 
 @pytest.mark.parametrize("controller", ["pid2", "stfpi"])

@@ -77,7 +77,9 @@ def bode_figure(curves: Sequence[BodeCurve], title: str | None = None) -> Figure
         check_text(c.label, "label")
     if title:
         check_text(title, "title")
-    fig = Figure(figsize=(7.0, 6.0))
+    many = len(curves) > 4  # the legend goes below the plots, the figure grows
+    fig = Figure(figsize=(9.0, 8.0) if many else (7.0, 6.0),
+                 layout="constrained" if many else None)
     ax_m, ax_p = fig.subplots(2, 1, sharex=True)
     for i, c in enumerate(curves):
         colour = c.colour or _COLOURS[i % len(_COLOURS)]
@@ -100,8 +102,19 @@ def bode_figure(curves: Sequence[BodeCurve], title: str | None = None) -> Figure
         ax.grid(True, which="both", alpha=0.3)
     if any(c.measured_frequency.size for c in curves):
         ax_m.plot([], [], "o", color="0.3", markerfacecolor="none", label="measured")
-    ax_m.legend(fontsize="small")
+    # a closed loop's |T| far below -60 dB says nothing the phase does not: the axis stops
+    # there, so the designs' differences near 0 dB stay readable
+    lo, hi = ax_m.get_ylim()
+    if lo < -60.0:
+        ax_m.set_ylim(-60.0, max(hi, 5.0))
+    if many:
+        handles, labels = ax_m.get_legend_handles_labels()
+        fig.legend(handles, labels, loc="outside lower center", ncols=2, fontsize="small",
+                   frameon=False)
+    else:
+        ax_m.legend(fontsize="small")
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
+    if not many:
+        fig.tight_layout()
     return fig

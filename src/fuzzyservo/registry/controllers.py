@@ -556,7 +556,7 @@ _CONTROLLERS: dict[str, ControllerKind] = {
     # 10 s^2/m (delta' = 26, far overdamped), may be 0. kv_ff, ka_ff and tf are held at the
     # model's values: a step has no reference velocity or acceleration (rd = rdd = 0 at every
     # sample), so the tuner cannot see the feed-forward gains, and tf is a filter choice.
-    # Colour pink, unused by the other kinds.
+    # Colour grey: pink is the study's self-tuning fuzzy PI tuned like the PIDs (DESIGN_COLOURS).
     "ffpd": ControllerKind(
         name="ffpd", title="position control with feed-forward (industrial axis)",
         cls=FFPDController,
@@ -575,7 +575,7 @@ _CONTROLLERS: dict[str, ControllerKind] = {
                GainSpec(name="tf", unit="s", description="time constant of the velocity and "
                         "acceleration estimate filters", default=0.005102,
                         slider=(0.0, 0.05))),
-        options=(U_MIN, U_MAX), colour="#e377c2"),
+        options=(U_MIN, U_MAX), colour="#7f7f7f"),
     # Sliding-mode control (control/smc.py), cyan. Boxes: λ from 1 1/s (slower than every
     # design of the study: the tuned PIDs rise in ~0.75 s) to 100 1/s (the surface's double
     # pole at -λ then lies within a decade of the valve's 688 rad/s, which the law's model
@@ -712,9 +712,9 @@ def controller_names() -> tuple[str, ...]:
     return tuple(_CONTROLLERS)
 
 
-#: Colours of kinds registered without one (e.g. by a user's module): Bokeh's Category10 after
-#: the study's, by the kind's position among them.
-FALLBACK_COLOURS = ("#17becf", "#bcbd22", "#7f7f7f", "#e377c2", "#8c564b", "#9467bd")
+#: Colours of kinds registered without one (e.g. by a user's module): the light half of
+#: Category20, which no built-in kind or study design uses, by the kind's position among them.
+FALLBACK_COLOURS = ("#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94")
 
 
 def controller_colour(name: str) -> str:

@@ -347,10 +347,8 @@ def _tracking_plan(study: PlantStudy, cfg: StudyConfig) -> list[PlannedFigure]:
         return f" Diverged (not drawn): {', '.join(gone)}." if gone else ""
 
     plan: list[PlannedFigure] = []
-    # the fastest sine the valve can follow (the one claim C9 judges), else the slowest
-    within = [f for f in tc.sine_frequencies
-              if tc.sine_amplitude * 2 * math.pi * f <= cfg.params.velocity_gain]
-    f_sine = max(within) if within else min(tc.sine_frequencies)
+    # the fastest sine the valve can follow (claim C9 judges it), else the slowest
+    f_sine = tc.figure_frequency(cfg.params.velocity_gain)
     sine = curves(f"sine_{f_sine:g}")
     speed = tc.sine_amplitude * 2 * math.pi * f_sine
     sat = (f" Its peak speed {speed:.3g} m/s is beyond the valve's {cfg.params.velocity_gain:.3g}"

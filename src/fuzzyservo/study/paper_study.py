@@ -435,7 +435,9 @@ def run_plant_study(kind: str, cfg: StudyConfig, tuned: Mapping[str, Design],
     if cfg.tracking is not None:
         tracking = run_tracking_study(
             kind, lambda key: cfg.run_spec(kind, by_key[key]), [c.key for c in t_cases],
-            cfg.tracking, params=cfg.params, systems=systems, tick=tick)
+            cfg.tracking, params=cfg.params, systems=systems, tick=tick,
+            keep=(f"sine_{cfg.tracking.figure_frequency(cfg.params.velocity_gain):g}", "move",
+                  "load"))
         claims.append(tracking_claim(tracking, {c.key: c.label for c in t_cases},
                                      subject="stfpi", capacity=cfg.params.velocity_gain,
                                      tcfg=cfg.tracking))
