@@ -306,6 +306,20 @@ def _run_app(block: Block, words: list[str], scratch: Path) -> str:
         proc.wait(30)
 
 
+def _bode(d: Path, out: str) -> None:
+    # "margins, bandwidth": the table prints them, and the tuned loop is stable
+    assert "gain margin" in out and "phase margin" in out and "bandwidth" in out
+    assert "stable          yes" in out
+
+
+def _loaded(d: Path, out: str) -> None:
+    # a positive force opposes extension: from 5 s on the piston is pushed back, below where
+    # it stood (the gains file runs 10 s, as tuned; the step response has settled by 5 s)
+    run = read_run_csv(d / "loaded.csv")
+    before = run.y[run.t <= 5.0][-1]
+    assert min(run.y[run.t > 5.0]) < before - 1e-4
+
+
 def _fmu(name: str, identifier: str) -> Check:
     def check(d: Path, out: str) -> None:
         with zipfile.ZipFile(d / name) as zf:
@@ -346,6 +360,8 @@ CHECKS: dict[str, Check] = {
     "fuzzyservo tune --controller stfpi": _tune_stfpi,
     "fuzzyservo tune --controller pid2": _tune_pid2,
     "fuzzyservo app": _app,
+    "fuzzyservo bode --gains src/fuzzyservo/data/gains/linear-stfpi.toml": _bode,
+    "--load-force step:2000:5 --out loaded.csv": _loaded,
 }
 #: Not run: the suite itself.
 NOT_RUN = {"make test"}
