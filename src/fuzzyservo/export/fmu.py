@@ -236,7 +236,7 @@ def _xml_real(v: float) -> str:
 # base-unit exponents of the units the FMUs use (FMI 2.0 <BaseUnit>)
 _BASE_UNITS: dict[str, dict[str, int]] = {
     "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "m/s2": {"m": 1, "s": -2},
-    "Pa": {"kg": 1, "m": -1, "s": -2}, "s": {"s": 1}, "1/s": {"s": -1}, "1/m": {"m": -1},
+    "Pa": {"kg": 1, "m": -1, "s": -2}, "s": {"s": 1}, "1/s": {"s": -1}, "1/m": {"m": -1}, "N": {"kg": 1, "m": 1, "s": -2},
     "1/(m s)": {"m": -1, "s": -1}, "s/m": {"s": 1, "m": -1}, "1": {}, "-": {},
     # K_delta_e scales the error's change over one sample: a count of samples has no unit
     "1/m per sample": {"m": -1},
@@ -639,7 +639,9 @@ _SERVO_MODEL = """\
 
 #define FSM_GUID "@GUID@"
 #define FSM_N_OUT @N_OUT@
-#define FSM_N_VARS (FSM_N_OUT + 4)
+#define FSM_HAS_FORCE @HAS_FORCE@
+#define FSM_N_VARS (FSM_N_OUT + 4 + FSM_HAS_FORCE)
+#define FSM_VR_FORCE (FSM_N_OUT + 4) /* the input load_force, after the constants */
 #define FSM_TS @TS@
 #define FSM_U_TRIM @U_TRIM@
 #define FSM_DELAY @DELAY@
@@ -647,7 +649,8 @@ _SERVO_MODEL = """\
 struct fsm_model {
     fs_servo s; /* at t0 + fs_servo_time(&s) */
     double u, t0;
-    double sum; /* the sum of the steps' sizes */
+    double force; /* the input load_force [N], held over each step as u is */
+    double sum;   /* the sum of the steps' sizes */
 };
 
 static void fsm_defaults(struct fsm_model *m)
@@ -655,31 +658,45 @@ static void fsm_defaults(struct fsm_model *m)
     memset(m, 0, sizeof *m);
     fs_servo_init(&m->s);
     m->u = FSM_U_TRIM;
+    m->force = fs_servo_force(&m->s);
 }
 
 static int fsm_set(struct fsm_model *m, unsigned vr, double v, int phase, char *msg)
 {
     (void)phase;
-    if (vr != 0) {
-        sprintf(msg, "variable %u is not settable (only the input u is)", vr);
-        return 1;
+    if (vr == 0) {
+        m->u = v;
+        return 0;
     }
-    m->u = v;
-    return 0;
+    if (FSM_HAS_FORCE && vr == FSM_VR_FORCE) {
+        if (!isfinite(v)) {
+            sprintf(msg, "load_force = %g is not a finite force [N]", v);
+            return 1;
+        }
+        m->force = v;
+        return 0;
+    }
+    sprintf(msg, "variable %u is not settable (only the inputs u%s are)", vr,
+            FSM_HAS_FORCE ? " and load_force" : "");
+    return 1;
 }
 
 static int fsm_get(const struct fsm_model *m, unsigned vr, double *v)
 {
     if (vr == 0) {
         *v = m->u;
+    } else if (FSM_HAS_FORCE && vr == FSM_VR_FORCE) {
+        *v = m->force;
     } else if (vr <= FSM_N_OUT) {
         *v = fs_servo_output(&m->s, (int)vr - 1);
     } else if (vr == FSM_N_OUT + 1) {
         *v = FSM_TS;
     } else if (vr == FSM_N_OUT + 2) {
         *v = FSM_U_TRIM;
-    } else {
+    } else if (vr == FSM_N_OUT + 3) {
         *v = FSM_DELAY;
+    } else {
+        return 1;
     }
     return 0;
 }
@@ -713,11 +730,15 @@ static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
                 "ts = %g s", h, FSM_TS);
         return 1;
     }
+    if (fs_servo_set_force(&m->s, m->force) != 0) { /* held over the step's samples */
+        sprintf(msg, "this plant takes no load force other than its own");
+        return 1;
+    }
     for (j = 0; j < (long)n; j++) {
         if (fs_servo_sample(&m->s, m->u) != 0) {
             sprintf(msg, "the servo state became non-finite between t = %.17g s and "
-                    "%.17g s (command %g)", tk + (double)j * FSM_TS,
-                    tk + (double)(j + 1) * FSM_TS, m->u);
+                    "%.17g s (command %g, load force %g N)", tk + (double)j * FSM_TS,
+                    tk + (double)(j + 1) * FSM_TS, m->u, m->force);
             return 1;
         }
     }
@@ -729,10 +750,14 @@ static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
 
 def servo_fmu(servo: object, *, identifier: str, plant_name: str, description: str,
               units: Sequence[str], outputs: Sequence[str], descriptions: Sequence[str],
-              ts: float, u_trim: float, delay: float, plant_code: str) -> bytes:
+              ts: float, u_trim: float, delay: float, plant_code: str,
+              force_op: float | None = None) -> bytes:
     """The FMU (zip bytes) of a servo whose C code (fragment and constants) is
     ``plant_code``: input ``u``; outputs ``outputs`` (``y``, the measured position, then the
-    plant states); constants ``ts``, ``u_trim`` (the holding command) and ``delay``.
+    plant states); constants ``ts``, ``u_trim`` (the holding command) and ``delay``; then,
+    unless ``force_op`` is None (a plant without a load-force input), the input
+    ``load_force`` [N] starting at ``force_op`` (the parameter set's
+    ``load.external_force``), numbered last so that the others keep their value references.
 
     Raises
     ------
@@ -755,9 +780,15 @@ def servo_fmu(servo: object, *, identifier: str, plant_name: str, description: s
         FmuVariable("delay", "transport (hose) delay on the command", "s", "local",
                     "constant", delay),
     ]
+    if force_op is not None:
+        variables.append(FmuVariable(
+            "load_force", "total external load force on the piston, > 0 opposes extension "
+            "(the start value, the parameter set's load.external_force, holds the servo at "
+            "rest; held over each step)", "N", "input", "continuous", float(force_op)))
     source = f"{identifier}.c"
     model = (_SERVO_MODEL.replace("@VERSION@", __version__).replace("@PLANT@", plant_code)
              .replace("@N_OUT@", str(len(outputs)))
+             .replace("@HAS_FORCE@", "0" if force_op is None else "1")
              .replace("@TS@", c_literal(ts)).replace("@U_TRIM@", c_literal(u_trim))
              .replace("@DELAY@", c_literal(delay)))
     text = _with_wrapper(model)
