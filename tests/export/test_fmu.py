@@ -7,27 +7,30 @@ acceptance; both are ports of the same code on the same bits, so the observed di
 from __future__ import annotations
 
 import csv
-import shutil
-from collections.abc import Iterator
-from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description, simulate_fmu
-from fmpy.fmi2 import FMU2Slave
+from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
 from fuzzyservo.cli import main
+from fuzzyservo.control.command import CommandSchedule
 from fuzzyservo.files import read_gains_file
 from fuzzyservo.formats import read_system, write_system
 from fuzzyservo.fuzzy import FuzzySystem, Term, Variable
 from fuzzyservo.fuzzy.loop import loop_system
 from fuzzyservo.paper import paper_fuzzy_system
 from fuzzyservo.paper.published import named_set
+from fuzzyservo.plant import with_overrides
 from fuzzyservo.registry import build_controller, build_plant, controller_names
+from fuzzyservo.run import RunSpec
 from fuzzyservo.sim import simulate, simulate_open_loop
+from fuzzyservo.sim.closed_loop import run_loop, time_grid
+from fuzzyservo.sim.disturbances import load_force_samples
+from tests.export.fmu_harness import slaves
 
 ROOT = Path(__file__).resolve().parents[2]
 GAINS = ROOT / "src" / "fuzzyservo" / "data" / "gains"
@@ -36,47 +39,8 @@ PARAMS = named_set("paper")
 STROKE = PARAMS.cylinder.stroke
 #: The acceptance's bound on positions [m].
 TOL = 1e-9 * STROKE
-
-
-class Slave:
-    """An FMU instance driven by hand, through FMPy's FMI 2.0 bindings."""
-
-    def __init__(self, path: Path, name: str, start: float = 0.0,
-                 stop: float | None = None) -> None:
-        self.md = read_model_description(str(path))
-        self.dir = extract(str(path))
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.dir,
-                             modelIdentifier=self.md.coSimulation.modelIdentifier,
-                             instanceName=name)
-        self.fmu.instantiate()
-        self.fmu.setupExperiment(startTime=start, stopTime=stop)
-        self.fmu.enterInitializationMode()
-
-    def set(self, **values: float) -> None:
-        self.fmu.setReal([self.vr[k] for k in values], list(values.values()))
-
-    def get(self, *names: str) -> list[float]:
-        return list(self.fmu.getReal([self.vr[n] for n in names]))
-
-    def close(self) -> None:
-        try:
-            self.fmu.terminate()
-        except Exception:  # noqa: BLE001 - after an error only freeInstance is allowed
-            pass
-        self.fmu.freeInstance()
-        shutil.rmtree(self.dir, ignore_errors=True)
-
-
-@contextmanager
-def slaves(*specs: tuple[Path, str], start: float = 0.0,
-           stop: float | None = None) -> Iterator[list[Slave]]:
-    made = [Slave(p, n, start, stop) for p, n in specs]
-    try:
-        yield made
-    finally:
-        for s in made:
-            s.close()
+#: A load the servo is trimmed against at rest (the FMUs built with it) [N].
+FEXT = 3000.0
 
 
 def _export(argv: list[str]) -> None:
@@ -129,6 +93,11 @@ def fmus(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     out["servo-nonlinear-frac"] = d / "servo-nonlinear-frac.fmu"
     _export(["--plant", "nonlinear", "--delay", "0.0025", "--param",
              "load.mass=150", "--start", "0.3", "--out", str(out["servo-nonlinear-frac"])])
+    for plant in ("linear", "small-signal"):  # a load at rest: F_op != 0 (issue 25)
+        key = f"servo-{plant}-fext"
+        out[key] = d / f"{key}.fmu"
+        _export(["--plant", plant, "--delay", "0.0025", "--param",
+                 f"load.external_force={FEXT!r}", "--start", "0.3", "--out", str(out[key])])
     return out
 
 
@@ -202,9 +171,11 @@ def test_servo_fmu_follows_a_random_command_schedule(fmus: dict[str, Path]) -> N
 
 
 def _master(ctl_path: Path, servo_path: Path, r: np.ndarray, *,
-            change: tuple[int, str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+            change: tuple[int, str, float] | None = None,
+            force: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The small master loop: at t_k the controller reads (r_k, y_k) and steps, its u_k goes
-    to the servo, which steps to t_{k+1}; returns the y_k and u_k."""
+    to the servo, which steps to t_{k+1} (under the load force F_k when ``force`` is given);
+    returns the y_k and u_k."""
     ys, us = [], []
     with slaves((ctl_path, "ctl"), (servo_path, "servo")) as (ctl, servo):
         servo.fmu.exitInitializationMode()
@@ -222,6 +193,8 @@ def _master(ctl_path: Path, servo_path: Path, r: np.ndarray, *,
             ys.append(y)
             us.append(u)
             servo.set(u=u)
+            if force is not None:
+                servo.set(load_force=float(force[k]))
             servo.fmu.doStep(t, 1e-3)
             t += 1e-3
             y = servo.get("y")[0]
@@ -742,3 +715,98 @@ def test_a_refused_gain_leaves_the_error_state_docs_describe(
             ctl.fmu.doStep(t, TS)
             t += TS
         assert ctl.get("u") == after_restore  # the same run as if the call had not been made
+
+
+# --- issue 25: the servo FMU's load force ------------------------------------------------
+
+#: The load step of the closed-loop test: 20 kN opposing extension from 0.5 s on.
+LOAD = "step:20000:0.5"
+
+
+@pytest.mark.parametrize("key, plant, delay", [("pid", "nonlinear", "hose"),
+                                               ("pi", "linear", "0"),
+                                               ("p", "small-signal", "hose")])
+def test_a_load_step_on_the_servo_fmu_equals_simulate_load_force(
+        key: str, plant: str, delay: str, fmus: dict[str, Path]) -> None:
+    """``simulate --load-force step:F:T`` (its RunSpec) against the master loop of the two
+    FMUs, the servo's input ``load_force`` set each sample to the same total force
+    (load.external_force + F from T on): positions within the acceptance's 1e-9 of the
+    stroke, commands within 1e-9, as the loop without a force."""
+    path = GAINS / f"nonlinear-{key}.toml"
+    gains = dict(read_gains_file(path).gains) if path.exists() else (
+        {"kp": 20.0} if key == "p" else {"kp": 20.0, "ki": 20.0})
+    spec = RunSpec(controller=key, gains=tuple(gains.items()), plant=plant,
+                   reference="step:0.05", duration=1.2, load_force=LOAD,
+                   delay=PARAMS.delay.transport_delay if delay == "hose" else 0.0)
+    res = spec.run()
+    force = load_force_samples(spec.checked_load_force(), res.t, PARAMS.load.external_force)
+    y, u = _master(fmus[key], fmus[f"servo-{plant}-{delay}"], res.r, force=force)
+    assert np.max(np.abs(y - res.y)) <= TOL, np.max(np.abs(y - res.y))
+    assert np.max(np.abs(u - res.u)) <= 1e-9, np.max(np.abs(u - res.u))
+    free = replace(spec, load_force="").run()
+    assert np.max(np.abs(res.y - free.y)) > 1e-4  # the force moved the piston
+
+
+@pytest.mark.parametrize("key, plant", [("servo-nonlinear-frac", "nonlinear"),
+                                        ("servo-linear-fext", "linear"),
+                                        ("servo-small-signal-fext", "small-signal")])
+def test_the_servo_fmu_holds_a_load_force_over_each_step(key: str, plant: str,
+                                                         fmus: dict[str, Path]) -> None:
+    """A fixed command and a load force that changes at every communication step (steps of
+    1 and 3 samples, the force held over the whole step, as u is), about a load at rest
+    that is not 0 on the linear plants (F - F_op), with a fractional delay: y and every
+    state against the Python loop given the same per-sample forces, within 1e-9 of the
+    stroke (positions) and of each state's range."""
+    over = ({"load.mass": 150.0} if plant == "nonlinear" else
+            {"load.external_force": FEXT})
+    params = with_overrides(PARAMS, over)
+    plant_obj = build_plant(plant, params, 0.3 * STROKE)
+    f_op = params.load.external_force
+    rng = np.random.default_rng(25)
+    sizes = rng.choice([1, 3], size=300)
+    sizes = sizes[np.cumsum(sizes) <= 600]
+    n = int(sizes.sum())
+    force = np.repeat(f_op + rng.normal(0.0, 8000.0, sizes.size), sizes)
+    u = np.full(n + 1, plant_obj.u0)
+    run = run_loop(CommandSchedule(dt=TS), plant_obj, u, delay=0.0025,
+                   disturbance=np.append(force, force[-1]), noise=np.empty(0),
+                   t=time_grid(n * TS, TS), what="open loop")
+    with slaves((fmus[key], "servo")) as (servo,):
+        assert servo.get("load_force") == [f_op]  # the start value: the load at rest
+        servo.fmu.exitInitializationMode()
+        names = [v.name for v in servo.md.modelVariables if v.causality == "output"]
+        rows = [servo.get(*names)]
+        t, k = 0.0, 0
+        for m in sizes:
+            servo.set(u=float(plant_obj.u0), load_force=float(force[k]))
+            servo.fmu.doStep(t, m * TS)
+            t, k = t + m * TS, k + int(m)
+            rows.append(servo.get(*names))
+    out = np.array(rows)
+    at = np.concatenate([[0], np.cumsum(sizes)])
+    ref = np.column_stack([run.y, run.x])[at]
+    worst = {}
+    for i, name in enumerate(names):
+        scale = STROKE if name in ("y", "x") else max(1.0, float(np.ptp(ref[:, i])),
+                                                      float(np.max(np.abs(ref[:, i]))))
+        worst[name] = float(np.max(np.abs(out[:, i] - ref[:, i]))) / scale
+    assert max(worst.values()) <= 1e-9, worst
+    assert float(np.ptp(run.y)) > 1e-4  # the force moved it
+
+
+def test_the_load_force_input_keeps_the_other_value_references(fmus: dict[str, Path]) -> None:
+    """``load_force`` [N] is numbered after the existing variables (u 0, the outputs, ts,
+    u_trim, delay), so those keep their value references; a non-finite force is refused."""
+    for key in ("servo-linear-0", "servo-nonlinear-0"):
+        md = read_model_description(str(fmus[key]))
+        names = [v.name for v in md.modelVariables]
+        assert [v.valueReference for v in md.modelVariables] == list(range(len(names)))
+        n_out = sum(v.causality == "output" for v in md.modelVariables)
+        assert names[0] == "u" and names[n_out + 1:] == ["ts", "u_trim", "delay", "load_force"]
+        lf = md.modelVariables[-1]
+        assert (lf.causality, lf.variability, lf.unit, float(lf.start)) == (
+            "input", "continuous", "N", PARAMS.load.external_force)
+        with slaves((fmus[key], "servo")) as (servo,):
+            servo.fmu.exitInitializationMode()
+            with pytest.raises(Exception, match="(?i)error"):
+                servo.set(load_force=float("nan"))

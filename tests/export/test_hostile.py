@@ -154,8 +154,8 @@ def test_hostile_paths_stay_text_in_the_c_code(index: int, tmp_path: Path,
     obj = _compile(out / "stfpi.c", tmp_path / "hostile.o")
     assert _nm(obj) == _nm(plain["c"])  # locals too: nothing added, no constructor
     assert {s for s in _nm(obj, "--extern-only")} == {
-        "stfpi_init", "stfpi_reset", "stfpi_step", "stfpi_set_gains", "stfpi_gain_name",
-        "stfpi_gain_default", "stfpi_alpha"}
+        "stfpi_init", "stfpi_reset", "stfpi_step", "stfpi_step_ff", "stfpi_set_gains",
+        "stfpi_gain_name", "stfpi_gain_default", "stfpi_alpha"}
 
 
 def _description(fmu: Path) -> str:

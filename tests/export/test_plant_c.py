@@ -48,6 +48,7 @@ from fuzzyservo.sim import (
     simulate_open_loop,
 )
 from fuzzyservo.sim.closed_loop import run_loop, time_grid
+from fuzzyservo.sim.disturbances import load_force_samples, parse_load_force
 from tests.export.cbuild import compile_executable, compile_shared
 
 #: Relative tolerance of every comparison (module docstring).
@@ -75,10 +76,11 @@ def _params(name: str) -> ServoParams:
 
 # --- the C driver -----------------------------------------------------------------------
 
-#: Appended to each generated plant: runs a schedule, writes t then every output per sample
-#: (rows of FS_SERVO_NX + 2), returns the first sample whose state is non-finite, or -1.
+#: Appended to each generated plant: runs a schedule (and a load force per sample unless
+#: ``force`` is NULL), writes t then every output per sample (rows of FS_SERVO_NX + 2), returns
+#: the first sample whose state is non-finite, or -1.
 DRIVER = r"""
-int fs_run_@ID@(const double *u, int n, double *out)
+int fs_run_@ID@(const double *u, const double *force, int n, double *out)
 {
     fs_servo s;
     int i, k, bad = -1;
@@ -91,6 +93,9 @@ int fs_run_@ID@(const double *u, int n, double *out)
         }
         if (k == n) {
             break;
+        }
+        if (force != 0 && fs_servo_set_force(&s, force[k]) != 0) {
+            return -2;
         }
         if (fs_servo_sample(&s, u[k]) != 0 && bad < 0) {
             bad = k + 1;
@@ -105,6 +110,13 @@ int fs_outside_@ID@(void)
     fs_servo_init(&s);
     return isnan(fs_servo_output(&s, -1)) && isnan(fs_servo_output(&s, FS_SERVO_NX + 1));
 }
+
+double fs_force_@ID@(void)
+{
+    fs_servo s;
+    fs_servo_init(&s);
+    return fs_servo_force(&s);
+}
 """
 
 
@@ -112,13 +124,16 @@ def _unit(cid: str, sc: ServoC) -> str:
     return plant_fragment() + "\n" + sc.source + "\n" + DRIVER.replace("@ID@", cid)
 
 
-def _run_c(lib: ctypes.CDLL, cid: str, sc: ServoC, u: np.ndarray) -> tuple[np.ndarray, int]:
+def _run_c(lib: ctypes.CDLL, cid: str, sc: ServoC, u: np.ndarray,
+           force: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     fn = getattr(lib, f"fs_run_{cid}")
-    fn.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p]
+    fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p]
     fn.restype = ctypes.c_int
     u = np.ascontiguousarray(u, dtype=np.float64)
+    f = None if force is None else np.ascontiguousarray(force, dtype=np.float64)
+    assert f is None or f.size >= u.size
     out = np.zeros((u.size + 1, len(sc.outputs) + 1))
-    bad = fn(u.ctypes.data, u.size, out.ctypes.data)
+    bad = fn(u.ctypes.data, None if f is None else f.ctypes.data, u.size, out.ctypes.data)
     return out, int(bad)
 
 
@@ -317,6 +332,35 @@ def test_c_plant_in_the_python_closed_loop(tmp_path: Path, name: str) -> None:
     assert max(_deviation(out, res.t, res.y, res.x, sc)) <= REL
 
 
+@pytest.mark.parametrize("name", ["linear", "small-signal", "nonlinear"])
+def test_c_plant_takes_the_load_force(tmp_path: Path, name: str) -> None:
+    """Issue 25: fed the commands of a PI in ``simulate`` under a load force (about the
+    changed set's load at rest, F_op = 2 kN; a step and a piecewise-linear ramp, each
+    sample's force held over it) and the same forces through ``fs_servo_set_force``, the C
+    plant returns that run's measurements and states: the nonlinear plant's force balance,
+    the linear plants' superposition through their force column. At init the force is F_op."""
+    params = _params("changed")
+    plant = build_plant(name, params, 0.4, substep=1e-4)
+    ctl = build_controller("pi", {"kp": 40.0, "ki": 8.0}, dt=1e-3)
+    load = parse_load_force("pwl:0:0,0.05:0,0.051:-15000,0.2:9000")
+    t = time_grid(0.3, 1e-3)
+    force = load_force_samples(load, t, params.load.external_force)
+    res = simulate(ctl, plant, parse_reference("step:0.02"), duration=0.3, delay=0.0025,
+                   disturbance=force)
+    free = simulate(ctl, plant, parse_reference("step:0.02"), duration=0.3, delay=0.0025)
+    assert np.max(np.abs(res.y - free.y)) > 1e-4  # the force moved it
+    sc = emit_servo(plant, ts=1e-3, delay=0.0025)
+    assert sc.force_input and sc.force_op == params.load.external_force == 2.0e3
+    lib = ctypes.CDLL(str(compile_shared(_unit("lf", sc), tmp_path)))
+    lib.fs_force_lf.restype = ctypes.c_double
+    assert lib.fs_force_lf() == sc.force_op
+    out, bad = _run_c(lib, "lf", sc, res.u[:-1], force)
+    assert bad == -1
+    assert max(_deviation(out, res.t, res.y, res.x, sc)) <= REL
+    out, _ = _run_c(lib, "lf", sc, res.u[:-1])  # the force is what made the difference
+    assert np.max(np.abs(out[:, 1] - res.y)) > 1e-4
+
+
 # --- names, units and the CLI ------------------------------------------------------------
 
 
@@ -446,11 +490,13 @@ def test_sanitizer_build(tmp_path: Path) -> None:
         u = case.commands(seed=7)
         units.append(_unit(case.cid, sc))
         items = ", ".join(float(v).hex() for v in u)
-        decls.append(f"int fs_run_{case.cid}(const double *u, int n, double *out);\n"
+        decls.append(f"int fs_run_{case.cid}(const double *u, const double *force, int n, "
+                     f"double *out);\n"
                      f"static const double u_{case.cid}[{u.size}] = {{{items}}};")
         width = len(sc.outputs) + 1
         runs.append(
-            f"    printf(\"bad %d\\n\", fs_run_{case.cid}(u_{case.cid}, {u.size}, out));\n"
+            f"    printf(\"bad %d\\n\", fs_run_{case.cid}(u_{case.cid}, 0, {u.size}, "
+            f"out));\n"
             f"    for (k = 0; k <= {u.size}; k++) {{\n"
             f"        for (i = 0; i < {width}; i++) {{\n"
             f"            printf(\"%a \", out[k * {width} + i]);\n"

@@ -84,6 +84,9 @@ class CController:
     trace_index : int or None
         Position in the state ``NAME_ctl.s`` of the field the law traces as the run's α
         (what ``simulate`` records), or None: the law traces none (``simulate`` writes NaN).
+    feedforward : bool
+        The law uses the reference's velocity and acceleration (``NAME_step_ff``'s rd, rdd;
+        :attr:`fuzzyservo.control.law.Law.feedforward`); otherwise it ignores them.
     """
 
     name: str
@@ -98,6 +101,7 @@ class CController:
     self_tuning: bool
     digest: str
     trace_index: int | None = None
+    feedforward: bool = False
 
     def files(self) -> dict[str, str]:
         """File name -> text of the two files."""
@@ -285,7 +289,8 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
     return CController(name=name, kind=kind.name, header=header, source=source, real=real,
                        gain_names=gain_names, gains=values, gain_units=units, ts=ts,
                        self_tuning=has_alpha, digest=digest,
-                       trace_index=law.state_names.index(law.trace) if law.trace else None)
+                       trace_index=law.state_names.index(law.trace) if law.trace else None,
+                       feedforward=bool(law.feedforward))
 
 
 def _option_text(v: Any) -> str:

@@ -236,8 +236,9 @@ def _xml_real(v: float) -> str:
 # base-unit exponents of the units the FMUs use (FMI 2.0 <BaseUnit>)
 _BASE_UNITS: dict[str, dict[str, int]] = {
     "m": {"m": 1}, "m/s": {"m": 1, "s": -1}, "m/s2": {"m": 1, "s": -2},
-    "Pa": {"kg": 1, "m": -1, "s": -2}, "s": {"s": 1}, "1/s": {"s": -1}, "1/m": {"m": -1},
-    "1/(m s)": {"m": -1, "s": -1}, "s/m": {"s": 1, "m": -1}, "1": {}, "-": {},
+    "Pa": {"kg": 1, "m": -1, "s": -2}, "N": {"kg": 1, "m": 1, "s": -2}, "s": {"s": 1},
+    "1/s": {"s": -1}, "1/m": {"m": -1}, "1/(m s)": {"m": -1, "s": -1},
+    "s/m": {"s": 1, "m": -1}, "s2/m": {"s": 2, "m": -1}, "1": {}, "-": {},
     # K_delta_e scales the error's change over one sample: a count of samples has no unit
     "1/m per sample": {"m": -1},
 }
@@ -415,14 +416,17 @@ _CTL_MODEL = """\
 #include "@NAME@.h"
 
 #define FSM_GUID "@GUID@"
-#define FSM_N_VARS (@FIRST_GAIN@ + @UPPER@_N_GAINS)
 #define FSM_TS @TS@
 
 enum { FSM_VR_R, FSM_VR_Y, FSM_VR_U, FSM_VR_ALPHA, FSM_VR_U_START, FSM_VR_TS };
+/* After the gains (their value references stay where they were): the reference's velocity
+ * and acceleration, the feed-forward inputs of NAME_step_ff. */
+enum { FSM_VR_R_RATE = @FIRST_GAIN@ + @UPPER@_N_GAINS, FSM_VR_R_ACCEL, FSM_N_VARS };
 
 struct fsm_model {
     @NAME@_ctl c;
     double r, y, u, alpha, u_start, t0;
+    double r_rate, r_accel; /* dr/dt [m/s], d2r/dt2 [m/s2] at the sample */
     double g[@UPPER@_N_GAINS];
     double n;     /* samples taken (a whole number; exact in a double up to 2^53) */
     double since; /* time since the last sample: the sum of the steps' sizes */
@@ -467,6 +471,12 @@ static int fsm_set(struct fsm_model *m, unsigned vr, double v, int phase, char *
     case FSM_VR_Y:
         m->y = v;
         return 0;
+    case FSM_VR_R_RATE:
+        m->r_rate = v;
+        return 0;
+    case FSM_VR_R_ACCEL:
+        m->r_accel = v;
+        return 0;
     case FSM_VR_U_START:
         if (phase == FSM_STEP) {
             sprintf(msg, "u_start is fixed once initialised");
@@ -482,7 +492,7 @@ static int fsm_set(struct fsm_model *m, unsigned vr, double v, int phase, char *
     default:
         break;
     }
-    if (vr < @FIRST_GAIN@) {
+    if (vr < @FIRST_GAIN@ || vr >= FSM_VR_R_RATE) {
         sprintf(msg, "variable %u is not settable (an output or a constant)", vr);
         return 1;
     }
@@ -520,10 +530,16 @@ static int fsm_get(const struct fsm_model *m, unsigned vr, double *v)
     case FSM_VR_TS:
         *v = FSM_TS;
         return 0;
+    case FSM_VR_R_RATE:
+        *v = m->r_rate;
+        return 0;
+    case FSM_VR_R_ACCEL:
+        *v = m->r_accel;
+        return 0;
     default:
         break;
     }
-    if (vr < @FIRST_GAIN@) {
+    if (vr < @FIRST_GAIN@ || vr >= FSM_VR_R_RATE) {
         return 1;
     }
     *v = m->g[vr - @FIRST_GAIN@];
@@ -567,7 +583,8 @@ static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
         return 1;
     }
     if (sample) {
-        m->u = (double)@NAME@_step(&m->c, (@NAME@_real)m->r, (@NAME@_real)m->y);
+        m->u = (double)@NAME@_step_ff(&m->c, (@NAME@_real)m->r, (@NAME@_real)m->r_rate,
+                                      (@NAME@_real)m->r_accel, (@NAME@_real)m->y);
         m->alpha = FSM_TRACE(m);
         m->n += 1.0;
     }
@@ -580,7 +597,10 @@ static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
 def controller_fmu(cc: CController, *, kind_title: str, command: str = "") -> bytes:
     """The FMU (zip bytes) of the generated controller ``cc``: inputs ``r``, ``y``; output
     ``u`` (and ``alpha`` for the self-tuning controller); the gains as tunable parameters;
-    ``u_start`` (the holding command the controller starts from, bumpless) fixed.
+    ``u_start`` (the holding command the controller starts from, bumpless) fixed; after the
+    gains, the inputs ``r_rate`` and ``r_accel`` (the reference's velocity and acceleration,
+    passed to ``NAME_step_ff``; every controller has them, a law without feed-forward
+    ignores them), numbered last so that the others keep their value references.
 
     Raises
     ------
@@ -607,6 +627,14 @@ def controller_fmu(cc: CController, *, kind_title: str, command: str = "") -> by
         unit = "1" if u == "-" else u
         variables.append(FmuVariable(g, f"{kind.gain(g).description} [{u}]", unit,
                                      "parameter", "tunable", v))
+    use = ("the law's feed-forward input" if cc.feedforward else
+           "ignored by this law (it has no feed-forward)")
+    variables += [
+        FmuVariable("r_rate", f"reference velocity dr/dt at the sample: {use}", "m/s",
+                    "input", "continuous", 0.0),
+        FmuVariable("r_accel", f"reference acceleration d2r/dt2 at the sample: {use}",
+                    "m/s2", "input", "continuous", 0.0),
+    ]
     wrapper = f"{identifier}_fmi2.c"
     trace = "NAN" if cc.trace_index is None else f"(double)(m)->c.s[{cc.trace_index}]"
     model = (_CTL_MODEL.replace("@NAME@", cc.name).replace("@UPPER@", cc.name.upper())
@@ -639,7 +667,9 @@ _SERVO_MODEL = """\
 
 #define FSM_GUID "@GUID@"
 #define FSM_N_OUT @N_OUT@
-#define FSM_N_VARS (FSM_N_OUT + 4)
+#define FSM_HAS_FORCE @HAS_FORCE@
+#define FSM_N_VARS (FSM_N_OUT + 4 + FSM_HAS_FORCE)
+#define FSM_VR_FORCE (FSM_N_OUT + 4) /* the input load_force, after the constants */
 #define FSM_TS @TS@
 #define FSM_U_TRIM @U_TRIM@
 #define FSM_DELAY @DELAY@
@@ -647,7 +677,8 @@ _SERVO_MODEL = """\
 struct fsm_model {
     fs_servo s; /* at t0 + fs_servo_time(&s) */
     double u, t0;
-    double sum; /* the sum of the steps' sizes */
+    double force; /* the input load_force [N], held over each step as u is */
+    double sum;   /* the sum of the steps' sizes */
 };
 
 static void fsm_defaults(struct fsm_model *m)
@@ -655,31 +686,45 @@ static void fsm_defaults(struct fsm_model *m)
     memset(m, 0, sizeof *m);
     fs_servo_init(&m->s);
     m->u = FSM_U_TRIM;
+    m->force = fs_servo_force(&m->s);
 }
 
 static int fsm_set(struct fsm_model *m, unsigned vr, double v, int phase, char *msg)
 {
     (void)phase;
-    if (vr != 0) {
-        sprintf(msg, "variable %u is not settable (only the input u is)", vr);
-        return 1;
+    if (vr == 0) {
+        m->u = v;
+        return 0;
     }
-    m->u = v;
-    return 0;
+    if (FSM_HAS_FORCE && vr == FSM_VR_FORCE) {
+        if (!isfinite(v)) {
+            sprintf(msg, "load_force = %g is not a finite force [N]", v);
+            return 1;
+        }
+        m->force = v;
+        return 0;
+    }
+    sprintf(msg, "variable %u is not settable (only the inputs u%s are)", vr,
+            FSM_HAS_FORCE ? " and load_force" : "");
+    return 1;
 }
 
 static int fsm_get(const struct fsm_model *m, unsigned vr, double *v)
 {
     if (vr == 0) {
         *v = m->u;
+    } else if (FSM_HAS_FORCE && vr == FSM_VR_FORCE) {
+        *v = m->force;
     } else if (vr <= FSM_N_OUT) {
         *v = fs_servo_output(&m->s, (int)vr - 1);
     } else if (vr == FSM_N_OUT + 1) {
         *v = FSM_TS;
     } else if (vr == FSM_N_OUT + 2) {
         *v = FSM_U_TRIM;
-    } else {
+    } else if (vr == FSM_N_OUT + 3) {
         *v = FSM_DELAY;
+    } else {
+        return 1;
     }
     return 0;
 }
@@ -713,11 +758,15 @@ static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
                 "ts = %g s", h, FSM_TS);
         return 1;
     }
+    if (fs_servo_set_force(&m->s, m->force) != 0) { /* held over the step's samples */
+        sprintf(msg, "this plant takes no load force other than its own");
+        return 1;
+    }
     for (j = 0; j < (long)n; j++) {
         if (fs_servo_sample(&m->s, m->u) != 0) {
             sprintf(msg, "the servo state became non-finite between t = %.17g s and "
-                    "%.17g s (command %g)", tk + (double)j * FSM_TS,
-                    tk + (double)(j + 1) * FSM_TS, m->u);
+                    "%.17g s (command %g, load force %g N)", tk + (double)j * FSM_TS,
+                    tk + (double)(j + 1) * FSM_TS, m->u, m->force);
             return 1;
         }
     }
@@ -729,10 +778,14 @@ static int fsm_do_step(struct fsm_model *m, double t, double h, char *msg)
 
 def servo_fmu(servo: object, *, identifier: str, plant_name: str, description: str,
               units: Sequence[str], outputs: Sequence[str], descriptions: Sequence[str],
-              ts: float, u_trim: float, delay: float, plant_code: str) -> bytes:
+              ts: float, u_trim: float, delay: float, plant_code: str,
+              force_op: float | None = None) -> bytes:
     """The FMU (zip bytes) of a servo whose C code (fragment and constants) is
     ``plant_code``: input ``u``; outputs ``outputs`` (``y``, the measured position, then the
-    plant states); constants ``ts``, ``u_trim`` (the holding command) and ``delay``.
+    plant states); constants ``ts``, ``u_trim`` (the holding command) and ``delay``; then,
+    unless ``force_op`` is None (a plant without a load-force input), the input
+    ``load_force`` [N] starting at ``force_op`` (the parameter set's
+    ``load.external_force``), numbered last so that the others keep their value references.
 
     Raises
     ------
@@ -755,9 +808,15 @@ def servo_fmu(servo: object, *, identifier: str, plant_name: str, description: s
         FmuVariable("delay", "transport (hose) delay on the command", "s", "local",
                     "constant", delay),
     ]
+    if force_op is not None:
+        variables.append(FmuVariable(
+            "load_force", "total external load force on the piston, > 0 opposes extension "
+            "(the start value, the parameter set's load.external_force, holds the servo at "
+            "rest; held over each step)", "N", "input", "continuous", float(force_op)))
     source = f"{identifier}.c"
     model = (_SERVO_MODEL.replace("@VERSION@", __version__).replace("@PLANT@", plant_code)
              .replace("@N_OUT@", str(len(outputs)))
+             .replace("@HAS_FORCE@", "0" if force_op is None else "1")
              .replace("@TS@", c_literal(ts)).replace("@U_TRIM@", c_literal(u_trim))
              .replace("@DELAY@", c_literal(delay)))
     text = _with_wrapper(model)

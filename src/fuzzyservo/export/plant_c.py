@@ -12,11 +12,17 @@ exact C99 hexadecimal literal of the double the Python uses, and the API::
     static int    fs_servo_sample(fs_servo *s, double u);
     static double fs_servo_output(const fs_servo *s, int i);
     static double fs_servo_time(const fs_servo *s);
+    static int    fs_servo_set_force(fs_servo *s, double f);   /* load force F_ext [N] */
+    static double fs_servo_force(const fs_servo *s);
 
 ``fs_servo_sample(s, u)`` takes the command u_k issued at t_k = k ts and advances the plant to
 t_{k+1}, exactly as one sample of the Python loops does, so a sequence of calls reproduces
 ``fuzzyservo simulate --open-loop`` (and, with a controller in the loop, ``fuzzyservo
-simulate``) bit for bit. docs/export-plant-c.md states the timing and the guarantees.
+simulate``) bit for bit. ``fs_servo_set_force(s, F)`` sets the total external load force the
+following samples hold (the parameter set's ``load.external_force`` at init), as
+``simulate(..., disturbance=)`` holds F_k over sample k: the nonlinear plant's force balance
+takes it (``p[P_FEXT]``), a linear plant its response by superposition
+(``LinearPlant.force_response``). docs/export-plant-c.md states the timing and the guarantees.
 """
 
 from __future__ import annotations
@@ -31,8 +37,8 @@ import numpy as np
 from .. import __version__
 from .._typing import FloatArray
 from ..errors import ParameterError
-from ..plant.nonlinear import N_STATE, P_L, P_RES, STATE_NAMES
-from ..plant.zoh import check_delay, split_delay
+from ..plant.nonlinear import N_PARAMS, N_STATE, P_FEXT, P_L, P_RES, STATE_NAMES
+from ..plant.zoh import check_delay, discretize, split_delay
 from ..sim.closed_loop import (
     MAX_RK4_STEPS,
     MAX_SAMPLES,
@@ -119,6 +125,12 @@ class ServoC:
         otherwise (and ``(0, 0)`` for a linear plant) [-].
     stroke : float or None
         Stroke of the cylinder [m]; None when the plant does not know it.
+    force_input : bool
+        Whether the plant takes a load force (``fs_servo_set_force``): the nonlinear plant,
+        and a linear one with a force input ``e``. Without, only ``force_op`` is accepted.
+    force_op : float
+        The external load force at rest, the plant's at init [N] (the parameter set's
+        ``load.external_force``).
     n_samples_max : int or None
         Most samples the code was checked for (delay and RK4 work); None: not limited.
     """
@@ -138,6 +150,8 @@ class ServoC:
     n_sub: int
     n_split: tuple[int, int]
     stroke: float | None
+    force_input: bool
+    force_op: float
     n_samples_max: int | None
 
 
@@ -174,11 +188,27 @@ static void fs_servo_init(fs_servo *s)
     s->w = 0;
 }
 
+/* The total external load force F [N] (> 0 opposes extension) held over the samples from
+ * the next on, as the Python loops hold F_k over sample k; at init the parameter set's
+ * load.external_force. Returns 0, or 1 when the plant has no load-force input (then only
+ * that force is accepted). */
+static int fs_servo_set_force(fs_servo *s, double f)
+{
+@SET_FORCE@
+}
+
+/* The load force set last [N]. */
+static double fs_servo_force(const fs_servo *s)
+{
+@FORCE@
+}
+
 /* The command u_k [-] issued at t_k = k ts: advance the plant to t_{k+1}. Returns 0, or 1
  * when the state became non-finite (the state is then not usable). */
 static int fs_servo_sample(fs_servo *s, double u)
 {
     int bad = @SAMPLE@;
+@SAMPLE_FORCE@
     s->k += 1;
     return bad;
 }
@@ -188,10 +218,10 @@ static int fs_servo_sample(fs_servo *s, double u)
 static double fs_servo_output(const fs_servo *s, int i)
 {
     if (i == 0) {
-        return @Y@;
+@Y@
     }
     if (i >= 1 && i <= FS_SERVO_NX) {
-        return @STATE@;
+@STATE@
     }
     return NAN;
 }
@@ -279,6 +309,10 @@ def emit_servo(plant: LinearPlant | NonlinearPlant, *, ts: float, delay: float,
                     f"sample; at most {MAX_RK4_STEPS:.0e} are allowed")
         n1, n0 = (int(v) for v in substep_split(n_sub, f, ts))
         kind: Literal["linear", "nonlinear"] = "nonlinear"
+        n_p = int(np.asarray(plant.packed).size)
+        if n_p != N_PARAMS:
+            raise ParameterError(f"internal: the packed plant has {n_p} parameters, the C "
+                                 f"fragment {N_PARAMS}")
         info += ["nonlinear two-chamber model (nonlinear_one): classical RK4, step bound "
                  f"{plant.substep!r} s,",
                  f"{n_sub} substeps per sample"
@@ -289,6 +323,8 @@ def emit_servo(plant: LinearPlant | NonlinearPlant, *, ts: float, delay: float,
             _table("fs_servo_x0", plant.x0),
             "typedef struct {\n"
             "    double x[FS_SERVO_NX];         /* plant state at t_k [SI] */\n"
+            f"    double p[{n_p}];{' ' * (20 - len(str(n_p)))}/* fs_servo_p; p[FS_NL_P_FEXT]: "
+            "the load force [N] */\n"
             "    double work[5 * FS_SERVO_NX];  /* RK4 scratch */\n"
             "    double ubuf[FS_SERVO_RING];    /* the last d + 2 commands [-] */\n"
             "    long long k;                   /* samples taken: the state is at t_k */\n"
@@ -297,14 +333,22 @@ def emit_servo(plant: LinearPlant | NonlinearPlant, *, ts: float, delay: float,
         ]
         init = ("    for (i = 0; i < FS_SERVO_NX; i++) {\n"
                 "        s->x[i] = fs_servo_x0[i];\n    }\n"
+                f"    for (i = 0; i < {n_p}; i++) {{\n"
+                "        s->p[i] = fs_servo_p[i];\n    }\n"
                 "    for (i = 0; i < 5 * FS_SERVO_NX; i++) {\n"
                 "        s->work[i] = 0.0;\n    }")
-        sample = (f"fs_nl_sample(fs_servo_p, {_hex(ts)}, {d}, {_hex(f)},\n"
+        sample = (f"fs_nl_sample(s->p, {_hex(ts)}, {d}, {_hex(f)},\n"
                   f"                       {n_sub}, {n1}, {n0}, {_hex(plant.u0)},\n"
                   f"                       s->ubuf, FS_SERVO_RING, &s->w, s->k, u, s->x, "
                   f"s->work)")
-        y_expr = "fs_nl_measure(s->x, fs_servo_p)"
-        state_expr = "s->x[i - 1]"
+        y_expr = "        return fs_nl_measure(s->x, s->p);"
+        state_expr = "        return s->x[i - 1];"
+        # nonlinear_one: p[P_FEXT] = force[k] before the sample's substeps
+        force_input = True
+        force_op = float(plant.packed[P_FEXT])
+        set_force = "    s->p[FS_NL_P_FEXT] = f;\n    return 0;"
+        get_force = "    return s->p[FS_NL_P_FEXT];"
+        sample_force = ""
         x_start = np.asarray(plant.x0, dtype=np.float64)
         res = float(plant.packed[P_RES])
         y_start = x_start[STATE_NAMES.index("x")]
@@ -324,6 +368,16 @@ def emit_servo(plant: LinearPlant | NonlinearPlant, *, ts: float, delay: float,
         n_split = (0, 0)
         info += [f"linear plant (linear_one), {n} states, exact ZOH with the delay:",
                  "x_{k+1} = Phi x_k + G0 (u_{k-d} - u0) + G1 (u_{k-d-1} - u0), y = y0 + C x"]
+        force_input = plant.e.size > 0
+        force_op = plant.force_op
+        fop = _hex(force_op)
+        if force_input:
+            info += ["load force F by superposition (LinearPlant.force_response), its ZOH:",
+                     "xf_{k+1} = Phi_e xf_k + Ge (F_k - F_op), y += C xf, states += xf"]
+            fm = discretize(plant.a, plant.e, ts, 0.0)
+            force_consts = [_table("fs_servo_phie", fm.phi), _table("fs_servo_ge", fm.gamma0)]
+        else:
+            force_consts = []
         consts = [
             f"enum {{ FS_SERVO_NX = {n}, FS_SERVO_RING = {ring} }};",
             _table("fs_servo_phi", lp[2:o_g0]),
@@ -331,29 +385,53 @@ def emit_servo(plant: LinearPlant | NonlinearPlant, *, ts: float, delay: float,
             _table("fs_servo_g1", lp[o_g0 + n:o_g0 + 2 * n]),
             _table("fs_servo_c", lp[o_g0 + 2 * n:o_g0 + 3 * n]),
             _table("fs_servo_xop", plant.x_op),
+            *force_consts,
             "typedef struct {\n"
             "    double x[FS_SERVO_NX];       /* deviation from the operating point at t_k */\n"
             "    double xn[FS_SERVO_NX];      /* scratch of the update */\n"
+            "    double xf[FS_SERVO_NX];      /* the load force's part of the deviation */\n"
+            "    double f;                    /* load force held over the samples [N] */\n"
+            "    int forced;                  /* a force other than F_op was held */\n"
             "    double ubuf[FS_SERVO_RING];  /* the last d + 2 commands [-] */\n"
             "    long long k;                 /* samples taken: the state is at t_k */\n"
             "    int w;                       /* ring slot of the next command */\n"
             "} fs_servo;",
         ]
         init = ("    for (i = 0; i < FS_SERVO_NX; i++) {\n"
-                "        s->x[i] = 0.0;\n        s->xn[i] = 0.0;\n    }")
+                "        s->x[i] = 0.0;\n        s->xn[i] = 0.0;\n        s->xf[i] = 0.0;\n"
+                f"    }}\n    s->f = {fop};\n    s->forced = 0;")
         sample = (f"fs_lin_sample(FS_SERVO_NX, fs_servo_phi, fs_servo_g0, fs_servo_g1,\n"
                   f"                        {_hex(plant.u0)}, {d},\n"
                   f"                        s->ubuf, FS_SERVO_RING, &s->w, s->k, u, s->x, "
                   f"s->xn)")
-        y_expr = f"fs_lin_output(FS_SERVO_NX, fs_servo_c, {_hex(plant.y0)}, s->x)"
-        state_expr = "fs_servo_xop[i - 1] + s->x[i - 1]"
+        # run_loop adds y_F to the measurement and x_F to the kept states (superposition)
+        y_expr = (f"        double y = fs_lin_output(FS_SERVO_NX, fs_servo_c, {_hex(plant.y0)}, "
+                  f"s->x);\n"
+                  "        return s->forced ? y + fs_lin_force_output(FS_SERVO_NX, fs_servo_c, "
+                  "s->xf) : y;")
+        state_expr = ("        double x = fs_servo_xop[i - 1] + s->x[i - 1];\n"
+                      "        return s->forced ? x + s->xf[i - 1] : x;")
+        if force_input:
+            set_force = "    s->f = f;\n    return 0;"
+            sample_force = (f"    if (s->f != {fop}) {{\n        s->forced = 1;\n    }}\n"
+                            f"    if (s->forced) {{\n"
+                            f"        bad |= fs_lin_force_sample(FS_SERVO_NX, fs_servo_phie, "
+                            f"fs_servo_ge,\n"
+                            f"                                   s->f - {fop}, s->xf, s->xn);"
+                            f"\n    }}")
+        else:
+            set_force = f"    (void)s;\n    return f == {fop} ? 0 : 1;"
+            sample_force = ""
+        get_force = "    return s->f;"
         x_start = np.asarray(plant.x_op, dtype=np.float64)
         y_start = plant.y0
         stroke = plant.stroke
     api = _fill(_API, INIT=init, U0=_hex(plant.u0), SAMPLE=sample, Y=y_expr,
-                STATE=state_expr, TS=_hex(ts))
+                STATE=state_expr, TS=_hex(ts), SET_FORCE=set_force, FORCE=get_force,
+                SAMPLE_FORCE=sample_force)
     source = "\n\n".join([c_comment(info), *consts, api])
     return ServoC(source=source, kind=kind, outputs=names, units=units, descriptions=desc,
                   start=(float(y_start), *(float(v) for v in x_start)), u0=float(plant.u0),
                   ts=ts, delay=delay, whole_samples=d, fraction=f, ring=ring, n_sub=n_sub,
-                  n_split=n_split, stroke=stroke, n_samples_max=n_samples_max)
+                  n_split=n_split, stroke=stroke, force_input=force_input,
+                  force_op=float(force_op), n_samples_max=n_samples_max)

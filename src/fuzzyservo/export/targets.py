@@ -208,5 +208,6 @@ def export_servo_fmu(plant: Any, out: str | Path, *, plant_name: str, ts: float,
         servo, identifier=identifier, plant_name=plant_name,
         description=description or f"{plant_name} servo model of fuzzyservo",
         units=servo.units, outputs=servo.outputs, descriptions=servo.descriptions, ts=ts,
-        u_trim=float(plant.u0), delay=delay, plant_code=plant_fragment() + "\n" + servo.source)
+        u_trim=float(plant.u0), delay=delay, plant_code=plant_fragment() + "\n" + servo.source,
+        force_op=servo.force_op if servo.force_input else None)
     return write_bytes_atomic(path, data)

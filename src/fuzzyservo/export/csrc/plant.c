@@ -10,6 +10,8 @@
  *   fs_nl_*       fuzzyservo.plant.nonlinear (rhs, rk4_advance_ws and the helpers)
  *   fs_delayed    fuzzyservo.sim.closed_loop._delayed (the command ring buffer)
  *   fs_lin_*      the plant part of fuzzyservo.sim.loops.linear_one
+ *   fs_lin_force_* the load force's part of a linear plant,
+ *                 fuzzyservo.sim.closed_loop.LinearPlant.force_response (superposition)
  *   fs_nl_sample  the plant part of fuzzyservo.sim.loops.nonlinear_one
  *
  * Standard library only (math.h); no heap, no global state: the callers own every array.
@@ -298,6 +300,44 @@ static inline int fs_lin_sample(int n, const double *phi, const double *g0, cons
         }
     }
     return bad;
+}
+
+/* One sample of LinearPlant.force_response: the force's deviation xf (n states) advances
+ * under the force deviation df = F_k - F_op [N], held over the sample (no delay: the force
+ * acts on the piston): xf_{k+1} = phi_e xf_k + ge df, summed as the Python sums (ge df first,
+ * then phi_e's columns in order); xn is n doubles of scratch. Returns 0, or 1 when the new
+ * state is not finite. */
+static inline int fs_lin_force_sample(int n, const double *phi, const double *ge, double df,
+                                      double *xf, double *xn)
+{
+    int i, j, bad = 0;
+    for (i = 0; i < n; i++) {
+        double acc = ge[i] * df;
+        const double *row = phi + i * n;
+        for (j = 0; j < n; j++) {
+            acc = acc + row[j] * xf[j];
+        }
+        xn[i] = acc;
+    }
+    for (i = 0; i < n; i++) {
+        xf[i] = xn[i];
+        if (!isfinite(xf[i])) {
+            bad = 1;
+        }
+    }
+    return bad;
+}
+
+/* The force's part of the output, y_F = C xf, summed from 0 in state order [m]
+ * (force_response's ys). */
+static inline double fs_lin_force_output(int n, const double *c, const double *xf)
+{
+    double y = 0.0;
+    int i;
+    for (i = 0; i < n; i++) {
+        y = y + c[i] * xf[i];
+    }
+    return y;
 }
 
 /* One sample of nonlinear_one's plant: command u_k at sample k (t_k = k ts [s]); x advances
