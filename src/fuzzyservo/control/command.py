@@ -82,7 +82,10 @@ class CommandSchedule(LawController):
         """None."""
         return np.zeros(0)
 
-    def step(self, state: Any, reference: float, measurement: float) -> tuple[float, Any]:
-        """The command is the schedule sample ``reference`` [-]; ``measurement`` is unused."""
-        del measurement
+    def step(self, state: Any, reference: float, measurement: float, *,
+             reference_rate: float = 0.0, reference_acceleration: float = 0.0
+             ) -> tuple[float, Any]:
+        """The command is the schedule sample ``reference`` [-]; ``measurement`` and the
+        reference's rates are unused."""
+        del measurement, reference_rate, reference_acceleration
         return float(reference), state

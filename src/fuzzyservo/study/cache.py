@@ -193,7 +193,8 @@ def load_study(path: str | Path, *, key: str, version: str) -> PlantStudy:
             delays = _array(z, "delays")
             sweep = {str(k): {str(m): _array(z, f"sweep/{k}/{m}", delays.shape)
                               for m in ms} for k, ms in meta["sweep"].items()}
-            tracking, t_cases = None, ()
+            tracking: TrackingStudy | None = None
+            t_cases: tuple[ControllerCase, ...] = ()
             tm = meta.get("tracking")
             if tm is not None:
                 t_cases = tuple(ControllerCase(str(k), str(lab), str(kind), _floats(g))
