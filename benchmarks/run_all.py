@@ -13,7 +13,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ORDER = ["compile.py", "fuzzy_engine.py", "fuzzy_files.py", "plant.py", "closed_loop.py",
-         "tuning.py", "csv_write.py", "export_c.py", "sweep.py", "app_latency.py"]
+         "tuning.py", "csv_write.py", "export_c.py", "sweep.py", "app_latency.py",
+         "reproduce_time.py"]
 
 
 def main() -> int:
