@@ -94,8 +94,8 @@ def register(subparsers: Any) -> None:
     """Add the ``tune`` subcommand."""
     p = subparsers.add_parser(
         "tune", help=HELP["tune"],
-        description="Tune the gains of a controller (P, PI, PID, 2-DOF PID, fuzzy PI, "
-                    "self-tuning fuzzy PI) on a plant model by differential evolution over "
+        description="Tune the gains of a controller (any kind of the registry: --controller) "
+                    "on a plant model by differential evolution over "
                     "the batched simulator, and write them to a gains file (TOML) that "
                     "'fuzzyservo simulate --gains FILE' runs. With --robust SPEC.toml, tune "
                     "one design on every point of a sweep spec: a statistic of the objective "
