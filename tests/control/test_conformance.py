@@ -20,7 +20,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from fuzzyservo.control import FuzzyPIController, PIDController
+from fuzzyservo.control import FuzzyPIController, PIDController, WooFuzzyPIController
 from fuzzyservo.fuzzy import FuzzySystem, PackedSystem, Term, Variable, evaluate, pack
 from fuzzyservo.fuzzy.engine import grid_form
 from fuzzyservo.paper import alpha_system, du_system, paper_params
@@ -68,6 +68,11 @@ VARIANTS: list[tuple[str, str, dict[str, float], dict[str, Any]]] = [
      {"initial_error": "first", "filter_time": 0.01, "de_per": "second"}),
     ("stfpi-asymmetric", "stfpi", {}, {"u_min": -0.4, "u_max": 0.7}),
     ("stfpi-first-filtered-per-second", "stfpi", {"kde": 7e-4},
+     {"initial_error": "first", "filter_time": 0.003, "de_per": "second"}),
+    # Woo et al.'s functions with offsets other than 1 (b < 1 shrinks φ near the setpoint)
+    ("wfpi-offsets-asymmetric", "wfpi", {"phi_b": 0.4, "psi_d": 1.7},
+     {"u_min": -0.4, "u_max": 0.7}),
+    ("wfpi-first-filtered-per-second", "wfpi", {"kde": 7e-4},
      {"initial_error": "first", "filter_time": 0.003, "de_per": "second"}),
 ]
 
@@ -249,9 +254,10 @@ _DU_GENERAL = _general(du_system(), DU_TABLE)
 _ALPHA_GENERAL = _general(alpha_system(), ALPHA_TABLE)
 
 
-def _textbook_fuzzy(par: Mapping[str, Any], self_tuning: bool, seq: list[tuple[float, float]],
-                    u0: float = 0.0) -> list[float]:
-    """Velocity-form fuzzy PI, fuzzy_pi.py's docstring (paper eqs. 9-12; Mudi & Pal 1999)."""
+def _textbook_fuzzy(par: Mapping[str, Any], self_tuning: bool | str,
+                    seq: list[tuple[float, float]], u0: float = 0.0) -> list[float]:
+    """Velocity-form fuzzy PI, fuzzy_pi.py's docstring (paper eqs. 9-12; Mudi & Pal 1999);
+    ``self_tuning="woo"``: Woo, Chung & Lin (2000)'s φ and ψ of |e_n|, woo.py's docstring."""
     ke, kde, kdu, lo, hi = (par[k] for k in ("ke", "kde", "kdu", "u_min", "u_max"))
     a = math.exp(-H / par["filter_time"]) if par["filter_time"] > 0 else 0.0
     u_prev, e_prev, yf = u0, 0.0, 0.0
@@ -266,9 +272,15 @@ def _textbook_fuzzy(par: Mapping[str, Any], self_tuning: bool, seq: list[tuple[f
             e = r - yf
         de = e - e_prev if par["de_per"] == "sample" else (e - e_prev) / H
         en = min(max(ke * e, -1.0), 1.0)
-        den = min(max(kde * de, -1.0), 1.0)
+        phi = psi = 1.0
+        if self_tuning == "woo":
+            phi = par["phi_a"] * abs(en) + par["phi_b"]
+            psi = par["psi_c"] * (1.0 - abs(en)) + par["psi_d"]
+        den = min(max(phi * kde * de, -1.0), 1.0)
         dun = float(evaluate(_DU_GENERAL, [en, den])[0])
-        alpha = float(evaluate(_ALPHA_GENERAL, [en, den])[0]) if self_tuning else 1.0
+        alpha = psi
+        if self_tuning is True:
+            alpha = float(evaluate(_ALPHA_GENERAL, [en, den])[0])
         u_prev = min(max(u_prev + alpha * kdu * dun, lo), hi)
         e_prev = e
         out.append(u_prev)
@@ -279,6 +291,8 @@ def _reference(cid: str, ctl: Any, seq: list[tuple[float, float]]) -> list[float
     par = _params(cid)
     if type(ctl) is PIDController:
         return _textbook_pid(par, seq)
+    if isinstance(ctl, WooFuzzyPIController):
+        return _textbook_fuzzy(par, "woo", seq)
     if isinstance(ctl, FuzzyPIController):
         return _textbook_fuzzy(par, type(ctl).self_tuning, seq)
     raise NotImplementedError(f"no textbook reference for {type(ctl).__name__}: add one here")
@@ -318,7 +332,9 @@ def _first_command(cid: str, gains: Mapping[str, float], y0: float, u0: float) -
     if controller_kind(name).cls is PIDController:
         # from the bumpless rest state the PID acts on offsets from y0 with integral u0
         return _textbook_pid(par, [(STEP, 0.0)], integral0=u0)[0]
-    return _textbook_fuzzy(par, controller_kind(name).cls.self_tuning, [(y0 + STEP, y0)], u0)[0]
+    cls = controller_kind(name).cls
+    mode = "woo" if issubclass(cls, WooFuzzyPIController) else cls.self_tuning
+    return _textbook_fuzzy(par, mode, [(y0 + STEP, y0)], u0)[0]
 
 
 def _changed(name: str, value: float) -> float:

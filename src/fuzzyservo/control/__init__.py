@@ -1,7 +1,8 @@
-"""Discrete-time controllers with explicit state: PID family, fuzzy PI, self-tuning fuzzy PI.
+"""Discrete-time controllers with explicit state: PID family, fuzzy PI, self-tuning fuzzy PIs.
 
 Each controller's maths is a :class:`Law` declared once in its module (``pid.py``,
-``fuzzy_pi.py``), with its C port beside it (``pid.c``, ``fuzzy_pi.c``).
+``fuzzy_pi.py``; the self-tuning variants in ``self_tuning.py`` and ``woo.py`` are the fuzzy
+PI's law), with its C port beside it (``pid.c``, ``fuzzy_pi.c``).
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from .fuzzy_pi import (
     FUZZY_GAIN_NAMES,
     FUZZY_PI_GENERAL_LAW,
     FUZZY_PI_LAW,
+    WOO_FPI_GENERAL_LAW,
+    WOO_FPI_LAW,
     FuzzyPIController,
     FuzzyPIState,
 )
@@ -26,6 +29,7 @@ from .pid import (
     pid_step,
 )
 from .self_tuning import SelfTuningFuzzyPIController
+from .woo import WooFuzzyPIController
 
 __all__ = [
     "FUZZY_GAIN_NAMES",
@@ -43,6 +47,9 @@ __all__ = [
     "PIDState",
     "PackedController",
     "SelfTuningFuzzyPIController",
+    "WOO_FPI_GENERAL_LAW",
+    "WOO_FPI_LAW",
+    "WooFuzzyPIController",
     "indices",
     "kernel",
     "p_controller",
