@@ -81,7 +81,7 @@ def _compiled(kind: str, gains: dict[str, float], folder: Path, *, options: dict
 
 def _gains_files() -> list[Path]:
     files = sorted(GAINS.glob("*.toml"))
-    assert len(files) == 14  # the study's 12 and the two robust self-tuning fuzzy PIs
+    assert len(files) == 16  # the study's 12, the two robust self-tuning fuzzy PIs, wfpi's two
     return files
 
 
