@@ -25,6 +25,7 @@ from fuzzyservo.control import (
     FuzzyPIController,
     PIDController,
     SlidingModeController,
+    WooFuzzyPIController,
 )
 from fuzzyservo.fuzzy import FuzzySystem, PackedSystem, Term, Variable, evaluate, pack
 from fuzzyservo.fuzzy.engine import grid_form
@@ -83,6 +84,11 @@ VARIANTS: list[tuple[str, str, dict[str, float], dict[str, Any]]] = [
     # cannot be compared with another implementation)
     ("smc-thin-no-jerk", "smc", {"phi": 0.05, "omega_f": 50.0, "zeta_f": 0.6},
      {"reference_jerk": "zero"}),
+    # Woo et al.'s functions with offsets other than 1 (b < 1 shrinks φ near the setpoint)
+    ("wfpi-offsets-asymmetric", "wfpi", {"phi_b": 0.4, "psi_d": 1.7},
+     {"u_min": -0.4, "u_max": 0.7}),
+    ("wfpi-first-filtered-per-second", "wfpi", {"kde": 7e-4},
+     {"initial_error": "first", "filter_time": 0.003, "de_per": "second"}),
 ]
 
 CASES: dict[str, tuple[str, dict[str, float], dict[str, Any]]] = {
@@ -264,9 +270,10 @@ _DU_GENERAL = _general(du_system(), DU_TABLE)
 _ALPHA_GENERAL = _general(alpha_system(), ALPHA_TABLE)
 
 
-def _textbook_fuzzy(par: Mapping[str, Any], self_tuning: bool, seq: list[tuple[float, float]],
-                    u0: float = 0.0) -> list[float]:
-    """Velocity-form fuzzy PI, fuzzy_pi.py's docstring (paper eqs. 9-12; Mudi & Pal 1999)."""
+def _textbook_fuzzy(par: Mapping[str, Any], self_tuning: bool | str,
+                    seq: list[tuple[float, float]], u0: float = 0.0) -> list[float]:
+    """Velocity-form fuzzy PI, fuzzy_pi.py's docstring (paper eqs. 9-12; Mudi & Pal 1999);
+    ``self_tuning="woo"``: Woo, Chung & Lin (2000)'s φ and ψ of |e_n|, woo.py's docstring."""
     ke, kde, kdu, lo, hi = (par[k] for k in ("ke", "kde", "kdu", "u_min", "u_max"))
     a = math.exp(-H / par["filter_time"]) if par["filter_time"] > 0 else 0.0
     u_prev, e_prev, yf = u0, 0.0, 0.0
@@ -281,9 +288,15 @@ def _textbook_fuzzy(par: Mapping[str, Any], self_tuning: bool, seq: list[tuple[f
             e = r - yf
         de = e - e_prev if par["de_per"] == "sample" else (e - e_prev) / H
         en = min(max(ke * e, -1.0), 1.0)
-        den = min(max(kde * de, -1.0), 1.0)
+        phi = psi = 1.0
+        if self_tuning == "woo":
+            phi = par["phi_a"] * abs(en) + par["phi_b"]
+            psi = par["psi_c"] * (1.0 - abs(en)) + par["psi_d"]
+        den = min(max(phi * kde * de, -1.0), 1.0)
         dun = float(evaluate(_DU_GENERAL, [en, den])[0])
-        alpha = float(evaluate(_ALPHA_GENERAL, [en, den])[0]) if self_tuning else 1.0
+        alpha = psi
+        if self_tuning is True:
+            alpha = float(evaluate(_ALPHA_GENERAL, [en, den])[0])
         u_prev = min(max(u_prev + alpha * kdu * dun, lo), hi)
         e_prev = e
         out.append(u_prev)
@@ -354,6 +367,8 @@ def _reference(cid: str, ctl: Any, seq: list[tuple[float, float]]) -> list[float
         return _textbook_pid(par, seq)
     if type(ctl) is FFPDController:
         return _textbook_ffpd(par, seq)
+    if isinstance(ctl, WooFuzzyPIController):
+        return _textbook_fuzzy(par, "woo", seq)
     if isinstance(ctl, FuzzyPIController):
         return _textbook_fuzzy(par, type(ctl).self_tuning, seq)
     if isinstance(ctl, SlidingModeController):
@@ -404,11 +419,13 @@ def _first_command(cid: str, gains: Mapping[str, float], y0: float, u0: float) -
     if controller_kind(name).cls is PIDController:
         # from the bumpless rest state the PID acts on offsets from y0 with integral u0
         return _textbook_pid(par, [(STEP, 0.0)], integral0=u0)[0]
-    if controller_kind(name).cls is FFPDController:
+    cls = controller_kind(name).cls
+    if cls is FFPDController:
         return _textbook_ffpd(par, [(y0 + STEP, y0)], integral0=u0, y_prev=y0)[0]
-    if controller_kind(name).cls is SlidingModeController:
+    if cls is SlidingModeController:
         return _textbook_smc(par, [(y0 + STEP, y0)], u0)[0]
-    return _textbook_fuzzy(par, controller_kind(name).cls.self_tuning, [(y0 + STEP, y0)], u0)[0]
+    mode = "woo" if issubclass(cls, WooFuzzyPIController) else cls.self_tuning
+    return _textbook_fuzzy(par, mode, [(y0 + STEP, y0)], u0)[0]
 
 
 def _changed(name: str, value: float) -> float:

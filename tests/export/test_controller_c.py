@@ -91,9 +91,9 @@ def _compiled(kind: str, gains: dict[str, float], folder: Path, *, options: dict
 
 def _gains_files() -> list[Path]:
     files = sorted(GAINS.glob("*.toml"))
-    # the study's 12, the two robust self-tuning fuzzy PIs and the baselines (ffpd, smc) on
-    # 2 plants
-    assert len(files) == 18
+    # the study's 12, the two robust self-tuning fuzzy PIs and the baselines (ffpd, smc,
+    # wfpi) on 2 plants
+    assert len(files) == 20
     return files
 
 

@@ -50,7 +50,7 @@ def test_committed_gain_files_load() -> None:
     # 6 designs of the paper study (study.runner.GAIN_FILES) x 2 plants, and the self-tuning
     # fuzzy PI tuned on each plant's C8 robust set (tune --robust; tests/sweep/test_robust.py),
     # and the baselines beside them (issue 25: ffpd, smc) on each plant
-    assert len(files) == 18
+    assert len(files) == 20
     for f in files:
         t = read_gains_toml(f)
         design = next((d for d in ("-os0", "-robust") if f.stem.endswith(d)), "")

@@ -4,8 +4,8 @@ The kernels compile on their first call and are cached in a folder keyed by the 
 sources (:func:`fuzzyservo._jit.cache_dir`), so a process started afterwards loads them in a
 fraction of a second. A first ``simulate`` compiles only what it runs (a few seconds, with a
 notice on standard error); ``fuzzyservo precompile`` compiles everything at once, in two
-processes: for each control law of the registry (and the fuzzy PI's variant for general fuzzy
-systems, and the open loop's command schedule) its loop on the linear plant, its loop on the
+processes: for each control law of the registry (and each fuzzy law's variant for general
+fuzzy systems, and the open loop's command schedule) its loop on the linear plant, its loop on the
 nonlinear plant (single runs and batches share each) and its per-step API. ``make test``,
 ``make reproduce`` and ``make bench`` run it first; a container image or a Dask worker's
 environment can run it at build time.
@@ -64,9 +64,10 @@ class Job:
 @functools.cache
 def controllers() -> dict[str, tuple[Any, str]]:
     """One controller per distinct compiled law: ``{name: (controller, title)}``; the
-    registry's kinds in order (the first kind of each law), then the fuzzy PI on general
+    registry's kinds in order (the first kind of each law), then each fuzzy law on general
     systems (the paper's systems read from the shipped .fis files, packed for the general
-    evaluator) and the command schedule."""
+    evaluator: ``general`` the fuzzy PI's, ``general-KIND`` another's, e.g. ``wfpi``) and the
+    command schedule."""
     from importlib import resources
 
     from ..control.command import CommandSchedule
@@ -92,9 +93,10 @@ def controllers() -> dict[str, tuple[Any, str]]:
         kind = controller_kind(name)
         if kind.systems:
             ctl = kind.template(dt=ts, systems={r: systems[r] for r in kind.systems})
-            if ctl.law.key not in seen:
+            if ctl.law.key not in seen:  # "general", then "general-KIND" for another law
                 seen.add(ctl.law.key)
-                out["general"] = (ctl, ctl.law.title)
+                out["general" if "general" not in out else f"general-{name}"] = (
+                    ctl, ctl.law.title)
     cmd = CommandSchedule(dt=ts)
     if cmd.law.key not in seen:
         out["command"] = (cmd, "the open loop's command schedule")
@@ -114,7 +116,7 @@ def jobs() -> list[Job]:
             if name == "command" and target == "per-step":
                 continue
             scale = 1.0
-            if name == "general":  # the general fuzzy evaluator: about 20 s, once
+            if name.startswith("general"):  # the general fuzzy evaluator: about 20 s, once
                 scale = 12.0 if target == "per-step" else 1.2
             what = ("the per-step API" if target == "per-step"
                     else f"the closed loop on the {target} plant")
@@ -205,8 +207,10 @@ def precompile(processes: int = 2,
                 os.environ["FUZZYSERVO_COMPILE_NOTICE"] = before
         return done
     # the general fuzzy evaluator is most of the compile of the general variant's kernels:
-    # its per-step API compiles it first, then its loops load it (not compile it twice)
-    first = [j for j in todo if not (j.law == "general" and j.target != "per-step")]
+    # its per-step API compiles it first, then its loops and the other general laws' kernels
+    # load it (not compile it twice)
+    first = [j for j in todo if not (j.law.startswith("general")
+                                     and (j.law, j.target) != ("general", "per-step"))]
     later = [j for j in todo if j not in first]
     with ProcessPoolExecutor(max_workers=processes, mp_context=get_context("spawn"),
                              initializer=_worker_init) as pool:

@@ -1,9 +1,10 @@
-"""Discrete-time controllers with explicit state: PID family, fuzzy PI, self-tuning fuzzy PI,
+"""Discrete-time controllers with explicit state: PID family, fuzzy PI, self-tuning fuzzy PIs,
 position control with feed-forward, sliding-mode control.
 
 Each controller's maths is a :class:`Law` declared once in its module (``pid.py``,
-``fuzzy_pi.py``, ``ffpd.py``, ``smc.py``), with its C port beside it (``pid.c``,
-``fuzzy_pi.c``, ``ffpd.c``, ``smc.c``).
+``fuzzy_pi.py``, ``ffpd.py``, ``smc.py``; the self-tuning variants in ``self_tuning.py`` and
+``woo.py`` are the fuzzy PI's law), with its C port beside it (``pid.c``, ``fuzzy_pi.c``,
+``ffpd.c``, ``smc.c``).
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ from .fuzzy_pi import (
     FUZZY_GAIN_NAMES,
     FUZZY_PI_GENERAL_LAW,
     FUZZY_PI_LAW,
+    WOO_FPI_GENERAL_LAW,
+    WOO_FPI_LAW,
     FuzzyPIController,
     FuzzyPIState,
 )
@@ -44,6 +47,7 @@ from .smc import (
     smc_model_gains,
     smc_step,
 )
+from .woo import WooFuzzyPIController
 
 __all__ = [
     "FFPD_GAIN_NAMES",
@@ -71,6 +75,9 @@ __all__ = [
     "ffpd_step",
     "SlidingModeController",
     "SlidingModeState",
+    "WOO_FPI_GENERAL_LAW",
+    "WOO_FPI_LAW",
+    "WooFuzzyPIController",
     "indices",
     "kernel",
     "p_controller",

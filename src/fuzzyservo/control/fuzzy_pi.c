@@ -1,10 +1,12 @@
-/* C port of the fuzzy PI law, with and without self-tuning (fuzzyservo.control.fuzzy_pi:
- * fuzzy_pi_step, _pack, _rest), line by line.
+/* C port of the fuzzy PI law, with and without self-tuning: the alpha rule base (Mudi & Pal)
+ * or Woo et al.'s functions of |e_n| (fuzzyservo.control.fuzzy_pi: fuzzy_pi_step, _pack,
+ * _pack_woo, _rest), line by line.
  *
  * The exporter pastes this file after the law's layout, written from its declaration
  * (FUZZY_PI_LAW: FS_P_<NAME>, FS_S_<NAME>, FS_G_<NAME>, FS_K_<NAME>) and after the
- * controller's fuzzy systems: fs_sys_du(x1, x2), and when self-tuning (FS_SYS_ALPHA defined)
- * fs_sys(x1, x2, &du, &alpha), which evaluates both as the Python does. */
+ * controller's fuzzy systems: fs_sys_du(x1, x2), and when self-tuning by the alpha rule base
+ * (FS_SYS_ALPHA defined) fs_sys(x1, x2, &du, &alpha), which evaluates both as the Python does.
+ * The Woo law (WOO_FPI_LAW) has the same layout and seven gains (FS_G_PHI_A defined). */
 
 /* One sample on packed parameters p and state s (updated in place): fuzzy_pi_step. */
 static fs_real fs_law_step(const fs_real *p, fs_real *s, fs_real r, fs_real y,
@@ -27,12 +29,23 @@ static fs_real fs_law_step(const fs_real *p, fs_real *s, fs_real r, fs_real y,
     de = (e - e_prev) * p[FS_P_DE_SCALE];
     en = p[FS_P_KE] * e;
     den = p[FS_P_KDE] * de;
+    if (p[FS_P_SELF_TUNING] == 2) {
+        /* Woo et al. (2000): phi(|e_n|) scales the error change, psi(|e_n|) is alpha */
+        fs_real m = en < 0 ? -en : en;
+        if (1 < m) {
+            m = 1;
+        }
+        den = den * (p[FS_P_PHI_A] * m + p[FS_P_PHI_B]);
+        dun = fs_sys_du(en, den);
+        alpha = p[FS_P_PSI_C] * (1 - m) + p[FS_P_PSI_D];
+    } else {
 #ifdef FS_SYS_ALPHA
-    fs_sys(en, den, &dun, &alpha);
+        fs_sys(en, den, &dun, &alpha);
 #else
-    dun = fs_sys_du(en, den);
-    alpha = 1;
+        dun = fs_sys_du(en, den);
+        alpha = 1;
 #endif
+    }
     u = s[FS_S_U_PREV] + alpha * p[FS_P_KDU] * dun;
     if (u < p[FS_P_U_MIN]) {
         u = p[FS_P_U_MIN];
@@ -72,4 +85,15 @@ static void fs_law_pack(fs_real *p, const double *g, const double *k)
     p[FS_P_E_INIT] = (fs_real)k[FS_K_E_INIT];
     p[FS_P_FILTER_A] = (fs_real)k[FS_K_FILTER_A];
     p[FS_P_SELF_TUNING] = (fs_real)k[FS_K_SELF_TUNING];
+#ifdef FS_G_PHI_A /* the Woo law's gains (_pack_woo) */
+    p[FS_P_PHI_A] = (fs_real)g[FS_G_PHI_A];
+    p[FS_P_PHI_B] = (fs_real)g[FS_G_PHI_B];
+    p[FS_P_PSI_C] = (fs_real)g[FS_G_PSI_C];
+    p[FS_P_PSI_D] = (fs_real)g[FS_G_PSI_D];
+#else /* phi = psi = 1: unused without the Woo mode (_pack) */
+    p[FS_P_PHI_A] = 0;
+    p[FS_P_PHI_B] = 1;
+    p[FS_P_PSI_C] = 0;
+    p[FS_P_PSI_D] = 1;
+#endif
 }

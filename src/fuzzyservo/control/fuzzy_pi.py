@@ -8,6 +8,11 @@ Per sample k (paper eqs. 9-12 with α_F ≡ 1; Mudi & Pal 1999)::
     Δu(k)  = α K_Δu Δu_n(e_n, Δe_n)             α = 1 here, Fig. 3b in self_tuning.py
     u(k)   = sat(u(k-1) + Δu(k))                 saturated before it is stored (no windup)
 
+The α source is a packed code (``self_tuning``): 0, α = 1 (this class); 1, the α rule base of
+Mudi & Pal (:mod:`~fuzzyservo.control.self_tuning`); 2, Woo, Chung & Lin's functions of
+m = min(|e_n|, 1): Δe_n is multiplied by φ = a m + b and α = ψ = c (1 - m) + d
+(:mod:`~fuzzyservo.control.woo`, :data:`WOO_FPI_LAW`, whose gains add a, b, c, d).
+
 The first sample uses e(-1) = 0 (``initial_error="zero"``, the default: Mudi & Pal's natural
 start, so Δe_n saturates at the step) or e(-1) = e(0) (``"first"``, which makes the loop an
 I-P structure on an integrating plant, model notes §5.1). The filter coefficient is
@@ -38,6 +43,9 @@ __all__ = [
     "FUZZY_GAIN_NAMES",
     "FUZZY_PI_GENERAL_LAW",
     "FUZZY_PI_LAW",
+    "WOO_FPI_GENERAL_LAW",
+    "WOO_FPI_LAW",
+    "WOO_GAIN_NAMES",
     "FuzzyPIController",
     "FuzzyPIState",
     "KernelSystem",
@@ -53,7 +61,12 @@ PARAMS = (
     Field("de_scale", "1/s", "factor of the error difference: 1 (per sample) or 1/h"),
     Field("e_init", "-", "e(-1) rule: 0 zero, 1 the first error"),
     Field("filter_a", "-", "measurement filter coefficient exp(-h/T_f), 0 without filter"),
-    Field("self_tuning", "-", "1: the output gain is scaled by α (eq. 11), 0: α = 1"),
+    Field("self_tuning", "-", "α source: 0 α = 1; 1 the α rule base (eq. 11, Mudi & Pal); "
+          "2 Woo et al.'s functions of |e_n| (φ scales Δe_n, α = ψ)"),
+    Field("phi_a", "-", "Woo et al.'s φ = a |e_n| + b: slope a (mode 2)"),
+    Field("phi_b", "-", "Woo et al.'s φ: offset b (mode 2)"),
+    Field("psi_c", "-", "Woo et al.'s ψ = c (1 - |e_n|) + d: slope c (mode 2)"),
+    Field("psi_d", "-", "Woo et al.'s ψ: offset d (mode 2)"),
 )
 #: The law's packed state.
 STATE = (
@@ -76,9 +89,21 @@ CONSTANTS = (
     Field("de_scale", "1/s", "factor of the error difference: 1 (per sample) or 1/h"),
     Field("e_init", "-", "e(-1) rule: 0 zero, 1 the first error"),
     Field("filter_a", "-", "measurement filter coefficient exp(-h/T_f), 0 without filter"),
-    Field("self_tuning", "-", "1: self-tuning (α from the α system), 0: α = 1"),
+    Field("self_tuning", "-", "α source: 0 none (α = 1), 1 the α system, 2 Woo et al.'s "
+          "functions"),
 )
 FUZZY_GAIN_NAMES: tuple[str, ...] = tuple(f.name for f in GAINS)
+#: The gains of the fuzzy PI with Woo et al.'s scaling functions (:data:`WOO_FPI_LAW`): the
+#: fuzzy PI's, then the coefficients of φ and ψ.
+WOO_GAINS = GAINS + (
+    Field("phi_a", "-", "slope a of φ(e_n) = a |e_n| + b, the factor of K_Δe"),
+    Field("phi_b", "-", "offset b of φ"),
+    Field("psi_c", "-", "slope c of ψ(e_n) = c (1 - |e_n|) + d, the factor of K_Δu"),
+    Field("psi_d", "-", "offset d of ψ"),
+)
+WOO_GAIN_NAMES: tuple[str, ...] = tuple(f.name for f in WOO_GAINS)
+#: The α sources (the packed ``self_tuning`` code).
+ALPHA_NONE, ALPHA_RULES, ALPHA_WOO = 0.0, 1.0, 2.0
 
 P = indices("FuzzyPIParams", PARAMS)
 S = indices("FuzzyPIStateIndex", STATE)
@@ -121,9 +146,10 @@ SYSTEMS: Any = None
 def fuzzy_pi_step(p: Any, s: Any, r: float, y: float, aux: Any, rd: float,
                   rdd: float) -> float:
     """One fuzzy PI sample on packed ``p`` and state ``s`` (data pointers or arrays; ``s``
-    updated in place); returns u. ``aux`` holds the Δu and α systems; with ``self_tuning``
-    the output gain is scaled by α (eq. 11), otherwise α = 1. Written once, compiled for the
-    uniform-grid systems (the paper's) and for general ones (``SYSTEMS``)."""
+    updated in place); returns u. ``aux`` holds the Δu and α systems; the α source
+    ``self_tuning`` is 0 (α = 1), 1 (the α system, eq. 11) or 2 (Woo et al.'s φ and ψ).
+    Written once, compiled for the uniform-grid systems (the paper's) and for general ones
+    (``SYSTEMS``)."""
     if s[S.started] == 0.0:
         yf = y
         e = r - yf
@@ -137,7 +163,15 @@ def fuzzy_pi_step(p: Any, s: Any, r: float, y: float, aux: Any, rd: float,
     de = (e - e_prev) * p[P.de_scale]
     en = p[P.ke] * e
     den = p[P.kde] * de
-    dun, alpha_f = SYSTEMS(en, den, aux, p[P.self_tuning] == 1.0)
+    if p[P.self_tuning] == 2.0:
+        # Woo et al. (2000): |e_n| (clipped as the fuzzy kernel clips) sets the factor φ of
+        # the Δe scaling and the factor ψ of the output scaling, in place of the α system
+        m = min(abs(en), 1.0)
+        den = den * (p[P.phi_a] * m + p[P.phi_b])
+        dun, alpha_f = SYSTEMS(en, den, aux, False)
+        alpha_f = p[P.psi_c] * (1.0 - m) + p[P.psi_d]
+    else:
+        dun, alpha_f = SYSTEMS(en, den, aux, p[P.self_tuning] == 1.0)
     u = s[S.u_prev] + alpha_f * p[P.kdu] * dun
     u = min(max(u, p[P.u_min]), p[P.u_max])
     s[S.u_prev] = u
@@ -166,6 +200,21 @@ def _pack(g: FloatArray, k: FloatArray) -> FloatArray:
     out[:, P.e_init] = k[3]
     out[:, P.filter_a] = k[4]
     out[:, P.self_tuning] = k[5]
+    out[:, P.phi_a] = 0.0  # φ = ψ = 1: used only by the Woo mode, which packs its own
+    out[:, P.phi_b] = 1.0
+    out[:, P.psi_c] = 0.0
+    out[:, P.psi_d] = 1.0
+    return out
+
+
+def _pack_woo(g: FloatArray, k: FloatArray) -> FloatArray:
+    """Packed rows from gain rows (ke, kde, kdu, phi_a, phi_b, psi_c, psi_d) and the
+    constants, as :func:`_pack` (the constants' α source is 2, Woo et al.'s functions)."""
+    out = _pack(g[:, :3], k)
+    out[:, P.phi_a] = g[:, 3]
+    out[:, P.phi_b] = g[:, 4]
+    out[:, P.psi_c] = g[:, 5]
+    out[:, P.psi_d] = g[:, 6]
     return out
 
 
@@ -193,6 +242,18 @@ FUZZY_PI_GENERAL_LAW = Law(name="fuzzy_pi_general", title="the fuzzy PI (general
                            step=_GENERAL_STEP, prepare=_general_prepare, pack=_pack,
                            rest=_rest, trace="alpha", c_source=_C_PORT,
                            systems=("du", "alpha"))
+#: The same law with Woo et al.'s scaling functions as the α source (``control/woo.py``): the
+#: same layout, step and C port; its gains add φ's and ψ's coefficients. Rule tables on
+#: uniform grids, and general systems (:data:`WOO_FPI_GENERAL_LAW`).
+WOO_FPI_LAW = Law(name="fuzzy_pi_woo", title="the fuzzy PI with Woo et al.'s scaling",
+                  params=PARAMS, state=STATE, gains=WOO_GAINS, constants=CONSTANTS,
+                  step=_GRID_STEP, prepare=_grid_prepare, pack=_pack_woo, rest=_rest,
+                  trace="alpha", c_source=_C_PORT, systems=("du",))
+WOO_FPI_GENERAL_LAW = Law(name="fuzzy_pi_woo_general",
+                          title="the fuzzy PI with Woo et al.'s scaling (general systems)",
+                          params=PARAMS, state=STATE, gains=WOO_GAINS, constants=CONSTANTS,
+                          step=_GENERAL_STEP, prepare=_general_prepare, pack=_pack_woo,
+                          rest=_rest, trace="alpha", c_source=_C_PORT, systems=("du",))
 
 
 class KernelSystem(Protocol):

@@ -1,14 +1,15 @@
-"""Where fuzzyservo departs from, or has to complete, the paper, and why.
+"""Where fuzzyservo departs from, or has to complete, the paper, and why; and likewise for the
+published schemes it implements beside the paper's controllers.
 
-The report prints this list; docs/model.md explains each item at length, and a test checks that
-every topic here appears there.
+The report prints :data:`DEPARTURES`; docs/model.md explains each item at length, and a test
+checks that every topic here (those of :data:`WOO_DEPARTURES` too) appears there.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["DEPARTURES", "Departure"]
+__all__ = ["DEPARTURES", "WOO_2000", "WOO_DEPARTURES", "Departure"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -83,5 +84,60 @@ DEPARTURES: tuple[Departure, ...] = (
         "Not stated",
         "u(-1) = 0 (trim command on the nonlinear plant) and e(-1) = 0; delta-e per sample",
         "Mudi and Pal's incremental form; both are parameters of the controller.",
+    ),
+)
+
+#: The source of the ``wfpi`` kind (``fuzzyservo.control.woo``).
+WOO_2000 = ("Z.-W. Woo, H.-Y. Chung, J.-J. Lin, A PID type fuzzy controller with self-tuning "
+            "scaling factors, Fuzzy Sets and Systems 115(2), 321-326, 2000")
+
+#: Where the ``wfpi`` kind departs from Woo, Chung & Lin (2000) (:data:`WOO_2000`), and why;
+#: ``paper`` is what Woo et al. do. docs/model.md, "Baselines beside the paper's controllers".
+WOO_DEPARTURES: tuple[Departure, ...] = (
+    Departure(
+        "Woo: source text not checked",
+        "phi(e) = a|e| + b and psi(e) = c(1 - |e|) + d rescale the error-change input factor "
+        "and the integral output factor on line",
+        "These forms and roles, reconstructed from later accounts of the scheme; the "
+        "paper's text, its rule base and its coefficient values were not available here",
+        "No copy of the article was reachable from this workplace; every item below that "
+        "names Woo et al.'s choices should be checked against it.",
+    ),
+    Departure(
+        "Woo: controller type",
+        "PID type: a fuzzy PD map whose output feeds a proportional path (factor alpha) and "
+        "an integrating path (factor beta)",
+        "PI type: the paper's incremental fuzzy PI, i.e. the integrating path alone (alpha = "
+        "0), no derivative-like action",
+        "The comparison is between self-tuning schemes on one base controller, the paper's "
+        "stfpi's; a derivative path would change the controller as well as the tuning.",
+    ),
+    Departure(
+        "Woo: rule base",
+        "Their own fuzzy PD rule base and membership functions",
+        "The paper's Fig. 3a delta-u rule base, triangles and exact centroid (the du system)",
+        "The same base map as fpi and stfpi, so only the source of the scaling differs.",
+    ),
+    Departure(
+        "Woo: what phi and psi scale",
+        "phi the error-change input factor K_d, psi the integral output factor beta",
+        "phi multiplies K_de (the error-change scaling), psi multiplies K_du (the output "
+        "scaling; the run's alpha trace)",
+        "In the incremental fuzzy PI, K_de and K_du hold the places of K_d and beta in the "
+        "integrating path: proportional gain ~ psi phi K_du K_de, integral gain ~ psi K_du K_e.",
+    ),
+    Departure(
+        "Woo: error normalisation",
+        "|e| of the (unit-step) error, in [0, 1] for the step responses studied",
+        "m = min(|K_e e|, 1), the normalised error the rule base sees, clipped",
+        "The functions then see the error the fuzzy map sees; with K_e = 1/step, m = |e|/step.",
+    ),
+    Departure(
+        "Woo: coefficients",
+        "a, b, c, d chosen by the designer for each plant",
+        "b = d = 1 held; a and c in [0, 9] tuned with K_e, K_de, K_du by the project's tuner "
+        "(ITAE, the same constraints as the other kinds)",
+        "A free b or d only rescales K_de or K_du; a and c are the scheme's shape and are "
+        "tuned like every other kind's gains rather than guessed.",
     ),
 )

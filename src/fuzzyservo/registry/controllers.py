@@ -40,6 +40,7 @@ from ..control import (
     PIDController,
     SelfTuningFuzzyPIController,
     SlidingModeController,
+    WooFuzzyPIController,
 )
 from ..control.fuzzy_pi import KernelSystem
 from ..control.smc import PAPER_MODEL_GAINS as SMC_PAPER_MODEL
@@ -515,7 +516,8 @@ _KDU = GainSpec(name="kdu", unit="-", description="output scaling K_Δu", search
 # Colours: each kind's runs, on the page and in the study's figures (which draw each design in
 # its kind's colour; study.paper_study.DESIGN_COLOURS names the few designs that share a kind
 # with another): PID brown, 2-DOF PID purple, fuzzy PI green, self-tuning fuzzy PI blue,
-# P red and PI orange (the colours of the paper's two PIDs in the study).
+# P red and PI orange (the colours of the paper's two PIDs in the study), Woo et al.'s
+# self-tuning fuzzy PI olive.
 _CONTROLLERS: dict[str, ControllerKind] = {
     "p": ControllerKind(
         name="p", title="P", cls=PIDController, gains=(_KP,),
@@ -611,6 +613,28 @@ _CONTROLLERS: dict[str, ControllerKind] = {
                GainSpec(name="delta", unit="-", description="model hydraulic damping ratio δ",
                         default=SMC_PAPER_MODEL["delta"], log=False, slider=(0.0, 1.0))),
         options=(INTEGRAL_ACTION, REFERENCE_JERK, U_MIN, U_MAX), colour="#17becf"),
+    # Woo, Chung & Lin (2000)'s scaling functions on the fuzzy PI (control/woo.py; docs/
+    # model.md, "Baselines beside the paper's controllers"): φ = a|e_n| + b scales K_Δe, ψ =
+    # c(1 - |e_n|) + d scales K_Δu. b = d = 1 are held: with K_Δe and K_Δu searched, a free
+    # offset would only rescale them (b K_Δe is one gain), so the searches could not agree;
+    # a and c then say how many times larger φ is at full error and ψ at zero error than at
+    # the other end. Their box [0, 9] (linear: 0, the plain fuzzy PI, is a candidate) allows
+    # up to a tenfold change of each factor, the order of the paper's α (17:1 between its
+    # extremes). Tuned by one search over all five gains ("search"): the paper's steps exist
+    # for Mudi & Pal's α < 1, which lowers the gain (step 2 raises K_Δu to recover the rise
+    # time); φ, ψ >= 1 raise it, and a and c must be searched with the gains they multiply.
+    "wfpi": ControllerKind(
+        name="wfpi", title="self-tuning fuzzy PI (Woo et al. 2000)", cls=WooFuzzyPIController,
+        gains=(_KE, _KDE, _KDU,
+               GainSpec(name="phi_a", unit="-", description="slope a of φ = a|e_n| + b, the "
+                        "factor of K_Δe", default=0.0, search=(0.0, 9.0), log=False),
+               GainSpec(name="phi_b", unit="-", description="offset b of φ", default=1.0,
+                        log=False, slider=(0.0, 2.0)),
+               GainSpec(name="psi_c", unit="-", description="slope c of ψ = c(1 - |e_n|) + d, "
+                        "the factor of K_Δu", default=0.0, search=(0.0, 9.0), log=False),
+               GainSpec(name="psi_d", unit="-", description="offset d of ψ", default=1.0,
+                        log=False, slider=(0.0, 2.0))),
+        options=_FUZZY_OPTIONS, systems=("du",), colour="#bcbd22"),
 }
 
 #: Every controller kind by name (read-only view of the registry).
