@@ -134,7 +134,8 @@ def test_the_studys_tunings_record_the_overrides_they_run_on() -> None:
     for _, setup in jobs:
         assert setup.overrides == (("load.mass", HEAVY.load.mass),)
         assert setup.run_spec().params() == HEAVY
-    assert [s.constraints for _, s in jobs][-1] != TuningConstraints()
+    assert dict(jobs)["stfpi-os0"].constraints != TuningConstraints()  # the no-overshoot one
+    assert [name for name, _ in jobs][-3:] == ["ffpd", "smc", "wfpi"]  # the baselines, last
 
 
 def test_page_settings_hold_a_run_spec() -> None:

@@ -38,13 +38,13 @@ def test_reproduce_writes_every_output(reproduced: Path) -> None:
     out = reproduced
     for plant in PLANTS:
         for stem in ("fig4", "fig5", "fig6", "fig7", "fig8", "fig8_delay_overshoot",
-                     "robustness"):
+                     "robustness", "tracking_sine", "tracking_move", "tracking_load", "bode"):
             assert (out / f"{stem}_{plant}.png").stat().st_size > 10_000, (stem, plant)
             assert (out / f"{stem}_{plant}.svg").is_file(), (stem, plant)
     assert (out / "fig3a_surface_du.png").stat().st_size > 10_000
     claims = json.loads((out / "claims.json").read_text())
     assert [(c["plant"], c["id"]) for c in claims] == [
-        (p, f"C{i}") for p in PLANTS for i in range(1, 9)]
+        (p, f"C{i}") for p in PLANTS for i in range(1, 10)]
     for c in claims:
         assert set(c) == {"id", "claim", "verdict", "evidence", "plant", "rule", "thresholds",
                           "data"}
@@ -55,8 +55,21 @@ def test_reproduce_writes_every_output(reproduced: Path) -> None:
     text = re.sub(r"data:image/png;base64,[A-Za-z0-9+/=]*", "", html)
     assert "data:image/png;base64," in html and "http" not in text.replace("http-equiv", "")
     for needle in ("Departures from the paper", "Parameter set", "Controller gains",
-                   "load.mass"):
+                   "load.mass", "Tracking and load disturbances on the nonlinear plant",
+                   "Frequency response on the linear plant", "Jerk-limited move"):
         assert needle in html
+    # the tracking study: every design of the study and the baselines, in each experiment
+    with (out / "tracking.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    keys = {(r["plant"], r["controller"], r["experiment"]) for r in rows}
+    from fuzzyservo.study.paper_study import TRACKING_KEYS
+
+    assert keys == {(p, k, e) for p in PLANTS for k in TRACKING_KEYS
+                    for e in ("sine 0.5 Hz", "sine 1 Hz", "sine 2 Hz", "move", "load step")}
+    with (out / "frequency.csv").open() as fh:
+        margins = list(csv.DictReader(fh))
+    assert {(r["plant"], r["controller"]) for r in margins} == {
+        (p, k) for p in PLANTS for k in TRACKING_KEYS}
     for plant in PLANTS:
         assert len(list((out / "traces").glob(f"{plant}_*.csv"))) >= 8
 

@@ -91,4 +91,4 @@ def test_tracking_runs_are_the_runs_their_specs_make() -> None:
     assert math.isnan(st.load["p"]["recovery_time"])
     assert abs(st.load["pi"]["remaining"]) < 0.01 * st.load["pi"]["max_deviation"]
     assert st.load["pi"]["recovery_time"] < 5.5
-    assert set(st.runs) == {"p/move", "p/load", "pi/move", "pi/load"}
+    assert set(st.runs) == {f"{k}/{e}" for k in ("p", "pi") for e in ("sine_0.5", "move", "load")}

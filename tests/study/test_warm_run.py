@@ -22,9 +22,12 @@ from fuzzyservo._io import sha256_file
 from fuzzyservo.cli import main
 from fuzzyservo.plots.figures import FIG3_STEMS
 from fuzzyservo.sim import SimResult
-from fuzzyservo.study.figures import FIGURE_STEMS
+from fuzzyservo.study.figures import FIGURE_STEMS, FREQUENCY_STEMS, TRACKING_STEMS
 from fuzzyservo.study.runner import MANIFEST, folder_status
 from tests.conftest import reproduce_argv
+
+#: Every figure of one plant that reproduce draws (the tracking study and Bode figure too).
+STEMS = FIGURE_STEMS + TRACKING_STEMS + FREQUENCY_STEMS
 
 
 def _copy(reproduced: Path, tmp_path: Path) -> Path:
@@ -141,7 +144,7 @@ def test_a_changed_figure_file_is_drawn_again(reproduced: Path, tmp_path: Path,
     (out / "fig5_nonlinear.png").write_bytes(b"tampered")
     assert main(reproduce_argv(out)) == 0
     # the nonlinear plant's figures, and only they, are drawn again
-    assert spy.stems == [f"{s}_nonlinear" for s in FIGURE_STEMS] and spy.fig3_calls == 0
+    assert spy.stems == [f"{s}_nonlinear" for s in STEMS] and spy.fig3_calls == 0
     assert (out / "fig5_nonlinear.png").read_bytes() == b"drawn again"
     assert folder_status(out) == ("complete", [])
 
@@ -150,7 +153,7 @@ def test_a_changed_input_or_force_draws_again(reproduced: Path, tmp_path: Path,
                                               spy: _Spy, csv_spy: _CsvSpy) -> None:
     out = _copy(reproduced, tmp_path)
     assert main([*reproduce_argv(out), "--plant", "linear", "--duration", "6"]) == 0
-    assert spy.stems == [f"{s}_linear" for s in FIGURE_STEMS]  # another study: drawn
+    assert spy.stems == [f"{s}_linear" for s in STEMS]  # another study: drawn
     assert spy.fig3_calls == 0  # Fig. 3 does not depend on the study
     assert sorted(csv_spy.names) == _runs(out, "linear")  # and its traces written
     spy.stems.clear()
@@ -158,7 +161,7 @@ def test_a_changed_input_or_force_draws_again(reproduced: Path, tmp_path: Path,
     before = _traces(out)
     assert main([*reproduce_argv(out), "--plant", "linear", "--duration", "6",
                  "--force"]) == 0
-    assert spy.stems == [f"{s}_linear" for s in FIGURE_STEMS] and spy.fig3_calls == 1
+    assert spy.stems == [f"{s}_linear" for s in STEMS] and spy.fig3_calls == 1
     assert sorted(csv_spy.names) == _runs(out, "linear")
     after = _traces(out)
     assert all(after[n][0] != before[n][0] for n in before)  # the sweep's CSV too
