@@ -210,7 +210,7 @@ def test_simulate_system_options_refused_where_they_do_not_apply(
     out = str(tmp_path / "x.csv")
     cases = [
         (["--controller", "p", "--gains", "kp=1", "--du-system", str(system_file("du"))],
-         "--du-system applies to controller fpi or stfpi, not p"),
+         "--du-system applies to controller fpi, stfpi or wfpi, not p"),
         (["--controller", "fpi", "--gains", "ke=1,kde=1,kdu=0.01", "--alpha-system",
           str(system_file("alpha"))], "--alpha-system applies to controller stfpi, not fpi"),
         (["--controller", "fpi", "--gains", "ke=1,kde=1,kdu=0.01", "--no-rule-value", "0"],

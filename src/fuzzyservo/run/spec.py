@@ -654,8 +654,9 @@ def load_systems(kind: str | None, files: Mapping[str, Any],
             continue
         if role not in needs:
             users = [n for n in controller_names() if role in controller_kind(n).systems]
-            raise ParameterError(f"--{role}-system applies to controller "
-                                 f"{' or '.join(users)}, not {kind}")
+            names = (", ".join(users[:-1]) + " or " + users[-1]) if len(users) > 1 \
+                else users[0]
+            raise ParameterError(f"--{role}-system applies to controller {names}, not {kind}")
         system = read_system(path)
         out[role] = loop_system(system, source=str(path), no_rule_value=no_rule_value)
     for role, default in default_systems(tuple(r for r in needs if r not in out)).items():
