@@ -538,7 +538,7 @@ def tracking_figure(curves: Sequence[Curve], title: str, *, what: str = "error",
     y0 = float(ref.y[0])
     k0 = int(np.searchsorted(ref.t, since, side="left"))
     top.plot(ref.t[k0:], (ref.r[k0:] - y0) * 1e3, color="k", lw=1.0, ls=(0, (4, 3)),
-             label="reference")
+             label="reference", zorder=5)  # over the runs, which often cover it
     for c in curves:
         colour = _colour(c)
         top.plot(c.t[k0:], (c.y[k0:] - y0) * 1e3, color=colour, lw=1.2, ls=c.linestyle,
