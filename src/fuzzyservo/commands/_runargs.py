@@ -15,7 +15,13 @@ from typing import Any
 from ..analysis.autotune import TunedGains
 from ..errors import InputError, ParameterError
 from ..files import GainsFile, read_gains_file
-from ..registry import controller_kind, controller_names, controller_options, plant_names
+from ..registry import (
+    DEFAULT_SUBSTEP,
+    controller_kind,
+    controller_names,
+    controller_options,
+    plant_names,
+)
 from ..run import load_systems, parse_delay, parse_gains_pairs, run_default, systems_record
 from ..sim import DEFAULT_DELAY
 
@@ -51,6 +57,22 @@ def add_delay_argument(parser: argparse.ArgumentParser | Any) -> None:
                         help="transport (hose) delay on the command [s], or 'hose' for the "
                              "parameter set's delay.transport_delay (6 ms for the paper set); "
                              f"default {DEFAULT_DELAY:g}, none, as everywhere in fuzzyservo")
+
+
+def add_timing_arguments(parser: argparse.ArgumentParser | Any, *, ts_what: str,
+                         start_what: str) -> None:
+    """``--ts``, ``--start``, ``--delay`` and ``--substep`` of a command that builds one run
+    (``simulate``, ``bode``); ``ts_what`` and ``start_what`` say what the sample time and the
+    position are to the command, each default the gains file's, else the run's."""
+    parser.add_argument("--ts", "--dt", dest="ts", type=float, default=None, metavar="S",
+                        help=f"{ts_what} [s] (default: the gains file's, else "
+                             f"{run_default('ts'):g})")
+    parser.add_argument("--start", type=float, default=None, metavar="FRACTION",
+                        help=f"{start_what} as a fraction of the stroke (default: the gains "
+                             f"file's, else {run_default('start'):g})")
+    add_delay_argument(parser)
+    parser.add_argument("--substep", type=float, default=DEFAULT_SUBSTEP, metavar="S",
+                        help=f"nonlinear plant: RK4 step bound [s] (default {DEFAULT_SUBSTEP:g})")
 
 
 #: The delay [s] that ``--delay`` names (:func:`fuzzyservo.run.parse_delay`).

@@ -32,14 +32,14 @@ from ..analysis.frequency import (
     settle_time,
 )
 from ..errors import InputError, ParameterError
-from ..registry import DEFAULT_SUBSTEP, controller_colour, controller_options
+from ..registry import controller_colour, controller_options
 from ..run import RunSpec, check_start, run_default, servo_params
 from . import HELP
 from ._plantargs import add_plant_arguments, overrides_from_args, params_given, set_name
 from ._runargs import (
     add_controller_arguments,
-    add_delay_argument,
     add_plant_choice,
+    add_timing_arguments,
     controller_from_args,
     delay_from_args,
     simulated_time_progress,
@@ -64,15 +64,8 @@ def register(subparsers: Any) -> None:
             "with --measured also measured by sine sweeps on the plant itself "
             "(docs/frequency.md)."))
     add_plant_choice(parser, None)
-    parser.add_argument("--ts", "--dt", dest="ts", type=float, default=None, metavar="S",
-                        help="controller sample time [s] (default: the gains file's, else "
-                             f"{run_default('ts'):g})")
-    parser.add_argument("--start", type=float, default=None, metavar="FRACTION",
-                        help="operating position as a fraction of the stroke (default: the "
-                             f"gains file's, else {run_default('start'):g})")
-    add_delay_argument(parser)
-    parser.add_argument("--substep", type=float, default=DEFAULT_SUBSTEP, metavar="S",
-                        help=f"nonlinear plant: RK4 step bound [s] (default {DEFAULT_SUBSTEP:g})")
+    add_timing_arguments(parser, ts_what="controller sample time",
+                         start_what="operating position")
     parser.add_argument("--freq", default=DEFAULT_FREQ, metavar="LO:HI:N",
                         help=f"N log-spaced frequencies from LO to HI [Hz], below Nyquist "
                              f"(default {DEFAULT_FREQ})")

@@ -29,7 +29,7 @@ from ..analysis.autotune import TunedGains
 from ..errors import InputError, ParameterError
 from ..plant import ServoParams
 from ..plots.runs import FIGURE_FORMATS, runs_figure, save_figure
-from ..registry import DEFAULT_SUBSTEP, build_plant, controller_kind, controller_options
+from ..registry import build_plant, controller_kind, controller_options
 from ..run import BuiltRun, RunSpec, check_start, run_default, servo_params
 from ..sim import simulate_open_loop
 from ..sim.open_loop import MAX_RHS_EVALUATIONS
@@ -38,8 +38,8 @@ from ._plantargs import add_plant_arguments, overrides_from_args, params_given, 
 from ._runargs import (
     ControllerChoice,
     add_controller_arguments,
-    add_delay_argument,
     add_plant_choice,
+    add_timing_arguments,
     controller_from_args,
     delay_from_args,
     simulated_time_progress,
@@ -68,16 +68,8 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="simulated time [s] (default: the gains file's, else "
                              f"{run_default('duration'):g})")
-    parser.add_argument("--ts", "--dt", dest="ts", type=float, default=None, metavar="S",
-                        help="controller sample time and CSV step [s] (default: the gains "
-                             f"file's, else {run_default('ts'):g})")
-    parser.add_argument("--start", type=float, default=None, metavar="FRACTION",
-                        help="start position as a fraction of the stroke (default: the "
-                             f"gains file's, else {run_default('start'):g})")
-    add_delay_argument(parser)
-    parser.add_argument("--substep", type=float, default=DEFAULT_SUBSTEP, metavar="S",
-                        help="nonlinear plant: RK4 step bound [s] (default "
-                             f"{DEFAULT_SUBSTEP:g})")
+    add_timing_arguments(parser, ts_what="controller sample time and CSV step",
+                         start_what="start position")
     out = parser.add_argument_group("outputs (at least one)")
     out.add_argument("--out", default=None, metavar="FILE.csv",
                      help="CSV to write ('-': standard output)")
