@@ -156,7 +156,8 @@ class TrackingStudy:
     runs: dict[str, SimResult] = field(default_factory=dict)  #: f"{key}/{experiment}" -> run
 
 
-def _failed(exc: Exception) -> dict[str, float]:
+def _failed() -> dict[str, float]:
+    """The record of a run that diverged: no metric."""
     return {"diverged": 1.0}
 
 
@@ -190,8 +191,8 @@ def run_tracking_study(kind: str, base: Callable[[str], RunSpec], keys: Sequence
                         duration=tcfg.sine_run_duration(f))
             try:
                 res = run(s)
-            except SimulationDivergedError as exc:
-                sine[key][f"{f:g}"] = _failed(exc)
+            except SimulationDivergedError:
+                sine[key][f"{f:g}"] = _failed()
                 continue
             m = sine_metrics(res.t, res.r, res.y, f, periods=tcfg.sine_periods)
             sine[key][f"{f:g}"] = {"rms_error": m.rms_error, "max_error": m.max_error,
@@ -204,8 +205,8 @@ def run_tracking_study(kind: str, base: Callable[[str], RunSpec], keys: Sequence
                     duration=t_end + tcfg.move_settle)
         try:
             res = run(s)
-        except SimulationDivergedError as exc:
-            move[key] = _failed(exc)
+        except SimulationDivergedError:
+            move[key] = _failed()
         else:
             mm = move_metrics(res.t, res.r, res.y, distance=mv.distance, t_end=t_end,
                               band=tcfg.band)
@@ -218,8 +219,8 @@ def run_tracking_study(kind: str, base: Callable[[str], RunSpec], keys: Sequence
                     load_force=f"step:{force!r}:{tcfg.load_time!r}")
         try:
             res = run(s)
-        except SimulationDivergedError as exc:
-            load[key] = _failed(exc)
+        except SimulationDivergedError:
+            load[key] = _failed()
         else:
             dm = disturbance_metrics(res.t, res.y, t_step=tcfg.load_time, band=tcfg.band)
             load[key] = {"max_deviation": dm.max_deviation, "recovery_time": dm.recovery_time,
