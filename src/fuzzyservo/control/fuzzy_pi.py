@@ -228,19 +228,20 @@ def _rest(packed: FloatArray, y0: float, u0: float) -> FloatArray:
 
 
 _C_PORT = Path(__file__).with_name("fuzzy_pi.c")
+_ST_PORT = Path(__file__).with_name("fuzzy_pi.st")
 
 #: The fuzzy PI law (with and without self-tuning) for fuzzy systems on uniform grids (the
-#: paper's): its layout, step, packing and C port (``fuzzy_pi.c``).
+#: paper's): its layout, step, packing, C port (``fuzzy_pi.c``) and ST port (``fuzzy_pi.st``).
 FUZZY_PI_LAW = Law(name="fuzzy_pi", title="the fuzzy PI", params=PARAMS, state=STATE,
                    gains=GAINS, constants=CONSTANTS, step=_GRID_STEP, prepare=_grid_prepare,
-                   pack=_pack, rest=_rest, trace="alpha", c_source=_C_PORT,
+                   pack=_pack, rest=_rest, trace="alpha", c_source=_C_PORT, st_source=_ST_PORT,
                    systems=("du", "alpha"))
 #: The same law, compiled for general fuzzy systems (read from files): the same layout,
 #: packing and C port, the systems evaluated by the general exact evaluator.
 FUZZY_PI_GENERAL_LAW = Law(name="fuzzy_pi_general", title="the fuzzy PI (general systems)",
                            params=PARAMS, state=STATE, gains=GAINS, constants=CONSTANTS,
                            step=_GENERAL_STEP, prepare=_general_prepare, pack=_pack,
-                           rest=_rest, trace="alpha", c_source=_C_PORT,
+                           rest=_rest, trace="alpha", c_source=_C_PORT, st_source=_ST_PORT,
                            systems=("du", "alpha"))
 #: The same law with Woo et al.'s scaling functions as the α source (``control/woo.py``): the
 #: same layout, step and C port; its gains add φ's and ψ's coefficients. Rule tables on
@@ -248,12 +249,14 @@ FUZZY_PI_GENERAL_LAW = Law(name="fuzzy_pi_general", title="the fuzzy PI (general
 WOO_FPI_LAW = Law(name="fuzzy_pi_woo", title="the fuzzy PI with Woo et al.'s scaling",
                   params=PARAMS, state=STATE, gains=WOO_GAINS, constants=CONSTANTS,
                   step=_GRID_STEP, prepare=_grid_prepare, pack=_pack_woo, rest=_rest,
-                  trace="alpha", c_source=_C_PORT, systems=("du",))
+                  trace="alpha", c_source=_C_PORT, st_source=_ST_PORT,
+                  systems=("du",))
 WOO_FPI_GENERAL_LAW = Law(name="fuzzy_pi_woo_general",
                           title="the fuzzy PI with Woo et al.'s scaling (general systems)",
                           params=PARAMS, state=STATE, gains=WOO_GAINS, constants=CONSTANTS,
                           step=_GENERAL_STEP, prepare=_general_prepare, pack=_pack_woo,
-                          rest=_rest, trace="alpha", c_source=_C_PORT, systems=("du",))
+                          rest=_rest, trace="alpha", c_source=_C_PORT, st_source=_ST_PORT,
+                          systems=("du",))
 
 
 class KernelSystem(Protocol):

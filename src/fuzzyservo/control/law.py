@@ -21,7 +21,11 @@ module), and everything that needs its layout reads that declaration:
 - the C export writes the layout as named constants (``FS_P_KP``, ``FS_S_INTEGRAL``,
   ``FS_G_KP``, ``FS_K_TS``) before the law's C port (``c_source``, a file beside the law's
   module defining ``fs_law_step(p, s, r, y, rd, rdd)``, ``fs_law_rest`` and
-  ``fs_law_pack``), which indexes by those names only.
+  ``fs_law_pack``), which indexes by those names only;
+- the Structured Text export (IEC 61131-3) declares the same layout as named variables
+  (``P_KP``, ``S_INTEGRAL``, ``G_KP``, ``K_TS``) of the function block and pastes the law's
+  ST port (``st_source``, a file beside the law's module with the sections ``temps``,
+  ``step``, ``rest`` and ``pack``; docs/export-st.md, "Writing a law's ST port").
 
 :class:`LawController` gives a controller class the packing and per-step methods every front
 end uses (``pack``, ``pack_gains``, ``rest_states``, ``pack_state``, ``step``...) from its
@@ -124,6 +128,9 @@ class Law:
     c_source : Path or None
         The law's C port (defines ``fs_law_step``, ``fs_law_rest``, ``fs_law_pack``); None: no
         C export.
+    st_source : Path or None
+        The law's IEC 61131-3 Structured Text port (sections ``temps``, ``step``, ``rest``,
+        ``pack``; :mod:`fuzzyservo.export.st`); None: no ST export.
     feedforward : bool
         The law uses the reference's velocity and acceleration (the C export then offers
         ``<name>_step_ff`` and the controller FMU their inputs; front ends say so).
@@ -148,6 +155,7 @@ class Law:
     rest: Callable[[FloatArray, float, float], FloatArray]
     trace: str | None = None
     c_source: Path | None = None
+    st_source: Path | None = None
     feedforward: bool = False
     systems: tuple[str, ...] = ()
     source: str = ""

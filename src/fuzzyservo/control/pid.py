@@ -162,7 +162,8 @@ def _rest(packed: FloatArray, y0: float, u0: float) -> FloatArray:
 #: The PID family's law: its layout, step, packing and C port (``pid.c``).
 PID_LAW = Law(name="pid", title="PID", params=PARAMS, state=STATE, gains=GAINS,
               constants=CONSTANTS, step=pid_step, prepare=_no_aux, pack=_pack, rest=_rest,
-              c_source=Path(__file__).with_name("pid.c"))
+              c_source=Path(__file__).with_name("pid.c"),
+              st_source=Path(__file__).with_name("pid.st"))
 
 
 @dataclass(frozen=True, slots=True)

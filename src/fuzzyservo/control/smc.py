@@ -273,6 +273,7 @@ def _rest(packed: FloatArray, y0: float, u0: float) -> FloatArray:
 SMC_LAW = Law(name="smc", title="sliding-mode control", params=PARAMS, state=STATE,
               gains=GAINS, constants=CONSTANTS, step=smc_step, prepare=_no_aux, pack=_pack,
               rest=_rest, trace="sigma", c_source=Path(__file__).with_name("smc.c"),
+              st_source=Path(__file__).with_name("smc.st"),
               feedforward=True)
 
 
