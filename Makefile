@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed-stamp
 FLVENV := .venv-fuzzylite
 PIP_QUIET := $(if $(CI),-q,)
 
-.PHONY: all reproduce test test-fast lint bench clean clean-cache oracles crosscheck precompile browser
+.PHONY: all reproduce test test-fast lint bench clean clean-cache oracles crosscheck precompile browser matiec
 
 all: test
 
@@ -45,6 +45,26 @@ browser:
 	  || $(APT_INSTALL) $(BROWSER_PKGS) \
 	  || { $(SUDO) apt-get update -q && $(APT_INSTALL) $(BROWSER_PKGS); }
 
+# MatIEC (iec2c), the IEC 61131-3 compiler of Beremiz and OpenPLC: the outside checker of the
+# Structured Text that 'fuzzyservo export st' writes (tests/export/test_st.py). Built once, into
+# the ignored folder .oracles/matiec, from $(MATIEC_SRC) (a folder holding matiec-src.tar.gz
+# and build-matiec.sh, or the tarball itself) with the LREAL-literal patch beside it (about 50 s
+# on two cores; installs autoconf, automake, libtool, flex and bison with apt when missing).
+# GPL v3: used only to check, never shipped or linked. The ST tests fail, never skip, without it.
+MATIEC_SRC ?= ../shared/oracles/matiec
+MATIEC := .oracles/matiec
+matiec: $(MATIEC)/bin/iec2c
+$(MATIEC)/bin/iec2c:
+	@src="$(MATIEC_SRC)"; \
+	if [ -d "$$src" ]; then dir="$$src"; tarball="$$src/matiec-src.tar.gz"; \
+	else dir="$$(dirname "$$src")"; tarball="$$src"; fi; \
+	[ -f "$$tarball" ] && [ -f "$$dir/build-matiec.sh" ] || { \
+	  echo "WARNING: MatIEC's source is not in $$src: the Structured Text tests will fail. Set MATIEC_SRC to the folder holding matiec-src.tar.gz and build-matiec.sh (default ../shared/oracles/matiec)" >&2; exit 0; }; \
+	rm -rf $(MATIEC).tmp; \
+	PATCHES="$$(cd "$$dir" && ls matiec-lreal-literal.patch 2>/dev/null)" \
+	  bash "$$dir/build-matiec.sh" "$$tarball" "$$PWD/$(MATIEC).tmp" && \
+	rm -rf $(MATIEC) && mv $(MATIEC).tmp $(MATIEC)
+
 # Optional: Octave's fuzzy-logic-toolkit reads and evaluates our exported .fis files (about
 # 270 MB installed, so not part of `make test`).
 crosscheck: $(STAMP)
@@ -69,12 +89,12 @@ precompile: $(STAMP)
 	$(BIN)/fuzzyservo precompile
 
 # the 15 slowest tests are listed at the end (the suite is to stay under 10 minutes in CI)
-test: lint oracles browser precompile
+test: lint oracles browser matiec precompile
 	$(BIN)/python -m pytest -n 2 -q --durations=15
 
 # the same without the tests marked slow (brute-force accuracy, the README's study and tuning
 # runs): a quick check while editing; CI and `make test` run everything
-test-fast: lint oracles browser precompile
+test-fast: lint oracles browser matiec precompile
 	$(BIN)/python -m pytest -n 2 -q -m "not slow"
 
 bench: browser precompile $(FLVENV)/.installed-stamp

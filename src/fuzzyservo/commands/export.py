@@ -1,4 +1,5 @@
-"""``fuzzyservo export c|fmu``: a controller as C99 code, a controller or the servo as an FMU."""
+"""``fuzzyservo export c|fmu|st``: a controller as C99 code, a controller or the servo as an FMU,
+a controller as IEC 61131-3 Structured Text."""
 
 from __future__ import annotations
 
@@ -10,12 +11,15 @@ from typing import Any
 from ..errors import ParameterError
 from ..export import EXPORT_TARGETS, export_target_names
 from ..export._c import escape_text
+from ..export._st import check_st_name
 from ..export.targets import (
     check_c_folder,
     export_c,
     export_controller_fmu,
     export_servo_fmu,
+    export_st,
     generate_c,
+    generate_st,
 )
 from ..registry import DEFAULT_SUBSTEP, build_plant, controller_options
 from ..run import run_default
@@ -40,11 +44,21 @@ def _command(argv: list[str] | None) -> str:
     return "fuzzyservo " + shlex.join(sys.argv[1:] if argv is None else argv)
 
 
-def _controller_args(parser: argparse.ArgumentParser) -> None:
+def _controller_args(parser: argparse.ArgumentParser, st: bool = False) -> None:
     add_controller_arguments(parser)
     parser.add_argument("--ts", "--dt", dest="ts", type=float, default=None, metavar="S",
                         help="sample time [s] (default: the gains file's, else "
                              f"{run_default('ts'):g})")
+    if st:
+        parser.add_argument("--real", dest="real", action="store_const", const="REAL",
+                            default="LREAL",
+                            help="REAL (single-precision) arithmetic, for PLCs without LREAL "
+                                 "(default LREAL; docs/export-st.md states the deviation "
+                                 "from the Python controller)")
+        parser.add_argument("--name", default=None, metavar="ID",
+                            help="name of the function block and its files (default "
+                                 "CONTROLLER_ctl)")
+        return
     parser.add_argument("--float", dest="real", action="store_const", const="float",
                         default="double",
                         help="single-precision arithmetic (default double; docs/export.md "
@@ -61,21 +75,24 @@ def register(subparsers: Any) -> None:
         "export", help=HELP["export"],
         description=(
             "Take a controller to hardware: C99 code with no dependency beyond the C "
-            "standard library (export c), or an FMI 2.0 co-simulation FMU of a controller or "
-            "of the servo for 64-bit Linux (export fmu), computing what the Python controller "
-            "and simulator compute (docs/export.md)."))
+            "standard library (export c), an FMI 2.0 co-simulation FMU of a controller or "
+            "of the servo for 64-bit Linux (export fmu), or IEC 61131-3 Structured Text for "
+            "a PLC (export st), computing what the Python controller and simulator compute "
+            "(docs/export.md, docs/export-st.md)."))
     sub = parser.add_subparsers(dest="export_target", required=True,
                                 metavar="{" + ",".join(names) + "}")
-    handlers = {"c": _run_c, "fmu": _run_fmu}
+    handlers = {"c": _run_c, "fmu": _run_fmu, "st": _run_st}
     for name in names:
         target = EXPORT_TARGETS[name]
         p = sub.add_parser(name, help=target.title, description=f"Export {target.title}.")
         if name == "fmu":
             add_plant_choice_optional(p)
-        _controller_args(p)
+        _controller_args(p, st=name == "st")
         p.add_argument("--out", required=True, metavar=target.writes,
                        help=("folder for NAME.h and NAME.c: new, empty, or holding only an "
                              "earlier export of the same name" if name == "c" else
+                             "folder for NAME.st and NAME_example.st: new, empty, or holding "
+                             "only an earlier export of the same name" if name == "st" else
                              "the FMU to write (replaced atomically)"))
         p.set_defaults(handler=handlers[name])
 
@@ -106,6 +123,24 @@ def _generate(args: argparse.Namespace) -> Any:
                       options=options, real=args.real, name=args.name,
                       systems_record=systems_record(systems),
                       command=_command(getattr(args, "argv", None)))
+
+
+def _run_st(args: argparse.Namespace) -> int:
+    if args.name is not None:
+        check_st_name(args.name)
+        check_c_folder(args.out, args.name,
+                       files=(f"{args.name}.st", f"{args.name}_example.st"))
+    choice = controller_from_args(args)
+    options = options_from_args(args, choice.kind)
+    systems = systems_from_args(args, choice.kind)
+    st = generate_st(choice.kind, choice.gains, ts=choice.ts, systems=systems,
+                     options=options, real=args.real, name=args.name,
+                     systems_record=systems_record(systems),
+                     command=_command(getattr(args, "argv", None)))
+    block, example = export_st(st, args.out)
+    print(f"wrote {escape_text(block)} and {escape_text(example)} ({st.kind}, {st.real}, "
+          f"ts = {st.ts:g} s)")
+    return 0
 
 
 def _run_c(args: argparse.Namespace) -> int:

@@ -334,7 +334,8 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
         raise ParameterError(f"--name {name!r} is also a variable of the block; choose "
                              f"another name")
 
-    lit = lambda v, where: st_literal(v, real, where)  # noqa: E731
+    def lit(v: float, where: str) -> str:
+        return st_literal(v, real, where)
 
     # --- header
     options = ", ".join(
@@ -434,8 +435,8 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
         const.append(f"{ind}K_{f.name.upper()} : {real} := "
                      f"{lit(v, 'K_' + f.name.upper())}; (* {st_comment_text(f.doc)} "
                      f"[{st_comment_text(f.unit)}] *)")
-    for g in grids.values():
-        const += [f"{ind}{ln}" for ln in st_tables(g, real)]
+    for grid in grids.values():
+        const += [f"{ind}{ln}" for ln in st_tables(grid, real)]
 
     # --- body
     zero = st_typed(0.0, real)
@@ -537,7 +538,7 @@ def _example(name: str, real: StReal, ts: float, what: str, feedforward: bool) -
         f"    VALVE_COMMAND : {real} := {zero}; (* I/O: to the valve amplifier, scaled from "
         f"[-1, 1] *)",
         "END_VAR",
-        f"    AXIS(SETPOINT := POSITION_SETPOINT, MEASUREMENT := POSITION,",
+        "    AXIS(SETPOINT := POSITION_SETPOINT, MEASUREMENT := POSITION,",
         "         SETPOINT_RATE := VELOCITY_SETPOINT, SETPOINT_ACCEL := ACCEL_SETPOINT,",
         "         ENABLE := AXIS_ENABLE, RESET := AXIS_RESET, HOLD_COMMAND := NULL_COMMAND);",
         "    VALVE_COMMAND := AXIS.COMMAND;",

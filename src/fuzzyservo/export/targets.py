@@ -2,10 +2,13 @@
 
 - ``c``: a registered controller as ``NAME.h`` and ``NAME.c`` (C99, standard library only).
 - ``fmu``: a controller, or the servo, as an FMI 2.0 co-simulation FMU for 64-bit Linux.
+- ``st``: a registered controller as IEC 61131-3 Structured Text for PLCs (``NAME.st``, the
+  function block, and ``NAME_example.st``, a program and configuration running it).
 
 The files are written only after everything has been generated (and, for an FMU, compiled):
 an error leaves the output as it was. A C export goes into a folder that is new, empty or
-holds only the two files of an earlier export of the same name; anything else is refused.
+holds only the two files of an earlier export of the same name; anything else is refused
+(likewise the Structured Text's two files).
 """
 
 from __future__ import annotations
@@ -21,8 +24,10 @@ from .._io import check_output_path, write_bytes_atomic, write_texts_atomic
 from ..errors import InputError
 from ..registry import controller_kind
 from ._c import Real
+from ._st import StReal, check_st_name
 from .controller_c import CController, check_c_name, emit_controller
 from .fmu import controller_fmu, servo_fmu
+from .st import STController, emit_st
 
 __all__ = [
     "EXPORT_TARGETS",
@@ -31,6 +36,8 @@ __all__ = [
     "export_c",
     "export_controller_fmu",
     "export_servo_fmu",
+    "export_st",
+    "generate_st",
     "export_target_names",
     "generate_c",
 ]
@@ -60,6 +67,8 @@ _TARGETS: dict[str, ExportTarget] = {
                       writes="DIR"),
     "fmu": ExportTarget(name="fmu", title="a controller or the servo as an FMI 2.0 "
                         "co-simulation FMU (64-bit Linux)", writes="FILE.fmu"),
+    "st": ExportTarget(name="st", title="a controller as IEC 61131-3 Structured Text for PLCs "
+                       "(NAME.st, NAME_example.st)", writes="DIR"),
 }
 
 #: Every export target by name (read-only).
@@ -113,9 +122,50 @@ def generate_c(kind_name: str, gains: Mapping[str, float], *, ts: float,
                            real=real, systems=systems_record, command=command)
 
 
-def check_c_folder(out: str | Path, name: str) -> Path:
-    """Check that ``out`` may receive ``NAME.h`` and ``NAME.c``: it does not exist (its
-    parent does), or it is a folder that is empty or holds only those two files.
+def generate_st(kind_name: str, gains: Mapping[str, float], *, ts: float,
+                systems: Mapping[str, Any] | None = None,
+                options: Mapping[str, Any] | None = None, real: StReal = "LREAL",
+                name: str | None = None,
+                systems_record: Sequence[tuple[str, str, str]] = (),
+                command: str = "") -> STController:
+    """The Structured Text of the registered controller ``kind_name`` (nothing written);
+    the arguments as :func:`generate_c`'s, ``real`` ``"LREAL"`` or ``"REAL"``, the block's
+    ``name`` by default ``<kind>_ctl`` (``PID`` and other standard names are taken).
+
+    Raises
+    ------
+    ParameterError
+        Unknown controller, bad gains or options, a bad name or type, a general fuzzy system.
+    """
+    kind = controller_kind(kind_name)
+    block = check_st_name(f"{kind_name}_ctl" if name is None else name)
+    checked = kind.check_gains(gains)
+    controller = kind.build(checked, dt=ts, systems=systems, options=options)
+    return emit_st(kind, checked, controller, name=block, real=real,
+                   systems=systems_record, command=command)
+
+
+def export_st(st: STController, out: str | Path) -> tuple[Path, Path]:
+    """Write ``st``'s two files into the folder ``out`` (new, empty, or holding only an
+    earlier export of the same name), as one (``_io.write_texts_atomic``); returns the
+    block's and the example's paths."""
+    files = st.files()
+    folder = check_c_folder(out, st.name, files=tuple(files))
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {str(folder)!r}: cannot create the folder ({exc.strerror})"
+                         ) from None
+    paths = {folder / n: text for n, text in files.items()}
+    write_texts_atomic(paths)
+    block, example = paths
+    return block, example
+
+
+def check_c_folder(out: str | Path, name: str, files: Sequence[str] | None = None) -> Path:
+    """Check that ``out`` may receive ``files`` (by default ``NAME.h`` and ``NAME.c``): it
+    does not exist (its parent does), or it is a folder that is empty or holds only those
+    files.
 
     Raises
     ------
@@ -123,17 +173,18 @@ def check_c_folder(out: str | Path, name: str) -> Path:
         Anything else (the message names the first other file).
     """
     p = Path(out)
-    ours = {f"{name}.h", f"{name}.c"}
+    names = list(files) if files is not None else [f"{name}.h", f"{name}.c"]
+    ours = set(names)
+    listed = " and ".join(names)
     if p.exists() and not p.is_dir():
-        raise InputError(f"--out {str(p)!r} is a file; give a folder for {name}.h and "
-                         f"{name}.c")
+        raise InputError(f"--out {str(p)!r} is a file; give a folder for {listed}")
     if p.is_dir():
         others = sorted(e.name for e in p.iterdir() if e.name not in ours)
         if others:
             raise InputError(
                 f"--out {str(p)!r} already holds other files ({', '.join(others[:3])}"
                 f"{', ...' if len(others) > 3 else ''}); give a new or empty folder (only "
-                f"{name}.h and {name}.c of an earlier export are replaced)")
+                f"{listed} of an earlier export are replaced)")
         if not os.access(p, os.W_OK | os.X_OK):
             raise InputError(f"--out {str(p)!r} is not writable")
         return p
