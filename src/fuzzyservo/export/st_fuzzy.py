@@ -37,8 +37,9 @@ __all__ = ["GridSystem", "grid_system", "st_eval", "st_tables", "st_temps"]
 _INT_VARS = ("FZ_K1", "FZ_K2", "FZ_LA", "FZ_LB", "FZ_LC", "FZ_LD", "FZ_LMIN", "FZ_LMAX",
              "FZ_J", "FZ_JEND", "FZ_JJ")
 _REAL_VARS = ("FZ_IN1", "FZ_IN2", "FZ_X1", "FZ_X2", "FZ_T1", "FZ_T2", "FZ_F1", "FZ_F2",
-              "FZ_G1", "FZ_G2", "FZ_WA", "FZ_WB", "FZ_WC", "FZ_WD", "FZ_H1", "FZ_H2", "FZ_H3", "FZ_H4", "FZ_HA",
-              "FZ_HB", "FZ_M", "FZ_TM", "FZ_AR", "FZ_MO", "FZ_AREA", "FZ_PAREA", "FZ_MOMENT")
+              "FZ_G1", "FZ_G2", "FZ_WA", "FZ_WB", "FZ_WC", "FZ_WD", "FZ_H1", "FZ_H2", "FZ_H3",
+              "FZ_H4", "FZ_HA", "FZ_HB", "FZ_M", "FZ_TM", "FZ_AR", "FZ_MO", "FZ_AREA", "FZ_PAREA",
+              "FZ_MOMENT")
 
 
 @dataclass(frozen=True, slots=True)
