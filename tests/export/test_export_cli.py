@@ -37,7 +37,7 @@ def _subparsers(parser: argparse.ArgumentParser, *path: str) -> dict[str, argpar
 
 def test_export_offers_exactly_the_registered_targets_and_controllers() -> None:
     targets = _subparsers(build_parser(), "export")
-    assert tuple(targets) == export_target_names() == ("c", "fmu")
+    assert tuple(targets) == export_target_names() == ("c", "fmu", "st")
     for p in targets.values():
         ctl = next(a for a in p._actions if a.dest == "controller")
         assert tuple(ctl.choices) == controller_names()
@@ -115,6 +115,63 @@ def test_bad_controller_input_is_one_line_and_writes_nothing(
         line = _error_line(capsys)
         assert all(w in line for w in words), line
         assert not out.exists()
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--controller", "pid", "--gains", "kp=-1,ki=1,kd=0"], ("gain kp", ">= 0", "-1")),
+    (["--controller", "fpi", "--gains", "ke=nan,kde=1,kdu=1"], ("gain ke", "nan")),
+    (["--controller", "pi", "--gains", "kp=1,ki=1", "--name", "PID"],
+     ("--name", "'PID'", "reserved")),
+    (["--controller", "pi", "--gains", "kp=1,ki=1", "--name", "int"], ("--name", "'int'")),
+    (["--controller", "pi", "--gains", "kp=1,ki=1", "--name", "a__b"], ("--name", "'a__b'")),
+    (["--controller", "pi", "--gains", "kp=1,ki=1", "--name", "REAL_TO_INT"], ("--name",)),
+    (["--controller", "pi", "--gains", "kp=1e39,ki=1", "--real"], ("gain kp", "REAL")),
+    (["--controller", "fpi", "--gains", "ke=1,kde=1,kdu=1", "--du-system",
+      str(Path(__file__).resolve().parents[1] / "formats" / "data" / "fis" / "all_mfs.fis")],
+     ("uniform triangular partitions",)),
+])
+def test_export_st_bad_input_is_one_line_and_writes_nothing(
+        argv: list[str], words: tuple[str, ...], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "plc"
+    assert main(["export", "st", *argv, "--out", str(out)]) == 2
+    line = _error_line(capsys)
+    assert all(w in line for w in words), line
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("name", controller_names())
+def test_export_st_writes_blocks_that_matiec_translates(
+        name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """export st of every kind: the two files, the command recorded, iec2c translates the
+    block with its example configuration; a second export of the same name replaces them."""
+    from tests.export.st_harness import translate
+
+    gains = ",".join(f"{g}=0.5" for g in controller_kind(name).gain_names)
+    out = tmp_path / "plc"
+    argv = ["export", "st", "--controller", name, "--gains", gains, "--out", str(out)]
+    assert main(argv) == 0
+    block, example = out / f"{name}_ctl.st", out / f"{name}_ctl_example.st"
+    assert sorted(p.name for p in out.iterdir()) == sorted([block.name, example.name])
+    text = block.read_text()
+    assert f"FUNCTION_BLOCK {name}_ctl\n" in text and "fuzzyservo export st --controller" in text
+    proc = translate(text + "\n" + example.read_text(), tmp_path / "matiec")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert main([*argv, "--real"]) == 0
+    assert "REAL" in block.read_text() and "LREAL" not in block.read_text()
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_export_st_refuses_a_folder_with_other_files(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "plc"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    assert main(["export", "st", "--controller", "pi", "--gains", "kp=1,ki=1", "--name", "ax",
+                 "--out", str(out)]) == 2
+    line = _error_line(capsys)
+    assert "notes.txt" in line and "ax.st and ax_example.st" in line
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]
 
 
 def test_fmu_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
