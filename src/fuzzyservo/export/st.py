@@ -40,7 +40,21 @@ from .. import __version__
 from ..errors import ParameterError
 from ..registry import ControllerKind
 from ._st import StReal, check_st_name, st_comment, st_comment_text, st_literal, st_typed
-from .st_fuzzy import GridSystem, grid_system, st_eval, st_tables, st_temps
+from .st_fuzzy import (
+    GridSystem,
+    PartitionSystem,
+    grid_system,
+    partition_system,
+    st_eval,
+    st_partition_consts,
+    st_partition_eval,
+    st_partition_tables,
+    st_partition_temps,
+    st_tables,
+    st_temps,
+)
+
+System = GridSystem | PartitionSystem
 
 __all__ = ["STController", "emit_st", "parse_port"]
 
@@ -113,7 +127,23 @@ def _typed(text: str, real: StReal) -> str:
     return _TYPE.sub(real, text)
 
 
-def _expand(lines: Sequence[str], *, systems: Mapping[str, GridSystem], gains: Sequence[str],
+def _eval(systems: list[System], x1: str, x2: str, outs: list[str], real: StReal,
+          ind: str) -> list[str]:
+    """One evaluation site: a pair of uniform grids located once (``eval_uniform_pair``), or
+    each system by its own path."""
+    if all(isinstance(s, GridSystem) for s in systems):
+        return st_eval([s for s in systems if isinstance(s, GridSystem)], x1, x2, outs, real,
+                       ind)
+    lines: list[str] = []
+    for s, o in zip(systems, outs, strict=True):
+        if isinstance(s, GridSystem):
+            lines += st_eval([s], x1, x2, [o], real, ind)
+        else:
+            lines += st_partition_eval(s, x1, x2, o, real, ind)
+    return lines
+
+
+def _expand(lines: Sequence[str], *, systems: Mapping[str, System], gains: Sequence[str],
             real: StReal, indent: str) -> list[str]:
     """The section's lines for this controller: conditionals resolved, evaluations written,
     the type and literals substituted, indented by ``indent``."""
@@ -151,8 +181,8 @@ def _expand(lines: Sequence[str], *, systems: Mapping[str, GridSystem], gains: S
                 if missing:
                     raise ParameterError(f"the ST port evaluates the {missing[0]} system, "
                                          f"which this controller does not have")
-                out += st_eval([systems[r] for r in roles], e.group(2), e.group(3), outs, real,
-                               indent + lead)
+                out += _eval([systems[r] for r in roles], e.group(2), e.group(3), outs, real,
+                             indent + lead)
             continue
         if keep():
             out.append((indent + _typed(line, real)).rstrip())
@@ -301,13 +331,18 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
 
     # the fuzzy systems
     sys_tables = controller.systems() if hasattr(controller, "systems") else {}
-    grids: dict[str, GridSystem] = {}
+    grids: dict[str, System] = {}
     tables: list[Any] = []
     for role, tab in sys_tables.items():
         if role not in law.systems:
             raise ParameterError(f"law {law.name} has no {role} system")
-        grids[role] = grid_system(role.upper(), tab[0], tab[1])
+        rules = np.asarray(tab[0])
+        if rules.ndim == 2 and rules.shape[0] > 1:
+            grids[role] = grid_system(role.upper(), tab[0], tab[1])
+        else:
+            grids[role] = partition_system(role.upper(), tab[0], tab[1])
         tables += list(tab)
+    parts = [s for s in grids.values() if isinstance(s, PartitionSystem)]
     digest = _tables_digest(tables) if tables else ""
 
     # names: the block's interface, the layout, the port's and the evaluator's variables
@@ -320,7 +355,7 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
               + [f"GL_{g}" for g in upper_gains])
     temps = _declared(port.sections["temps"])
     tables_names = [f"{r.upper()}_{t}" for r in grids for t in ("RULES", "LIMS")]
-    fz = _declared(st_temps(real))
+    fz = _declared(st_temps(real) + (st_partition_temps(parts, real) if parts else []))
     every = [*inputs, *upper_gains, *_FIXED, *layout, *temps, *tables_names, *fz]
     seen: set[str] = set()
     for n in every:
@@ -430,13 +465,19 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
     if grids:
         var.append(f"{ind}(* the fuzzy evaluator's working variables *)")
         var += [f"{ind}{ln}" for ln in st_temps(real)]
+    if parts:
+        var += [f"{ind}{ln}" for ln in st_partition_temps(parts, real)]
     const.append(f"{ind}(* packing constants *)")
     for f, v in zip(law.constants, constants, strict=True):
         const.append(f"{ind}K_{f.name.upper()} : {real} := "
                      f"{lit(v, 'K_' + f.name.upper())}; (* {st_comment_text(f.doc)} "
                      f"[{st_comment_text(f.unit)}] *)")
     for grid in grids.values():
-        const += [f"{ind}{ln}" for ln in st_tables(grid, real)]
+        if isinstance(grid, GridSystem):
+            const += [f"{ind}{ln}" for ln in st_tables(grid, real)]
+        else:
+            const += [f"{ind}{ln}" for ln in st_partition_tables(grid, real)]
+            const += [f"{ind}{ln}" for ln in st_partition_consts(grid, real)]
 
     # --- body
     zero = st_typed(0.0, real)
