@@ -232,6 +232,8 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
     # the registry's check of each gain (GainSpec.check): finite and >= 0, or > 0 / inf
     checks = [f"    if (!(g[{i}] > 0.0)) {{\n        return {i + 1};\n    }}"
               if kind.gain(g).allow_inf else
+              f"    if (!(g[{i}] > 0.0 && g[{i}] <= DBL_MAX)) {{\n        return {i + 1};\n    }}"
+              if kind.gain(g).positive else
               f"    if (!(g[{i}] >= 0.0 && g[{i}] <= DBL_MAX)) {{\n        return {i + 1};\n    }}"
               for i, g in enumerate(gain_names)]
     sys_defs, tables, roles = _systems_code(controller, law, real)
@@ -273,7 +275,8 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
         "the Python controller's; link with -lm.",
     ]
     header = _header(name, upper, real, info, gain_names, values, units, ts, n_p, n_s,
-                     has_alpha, _c_text(title), law.feedforward)
+                     has_alpha, _c_text(title), law.feedforward,
+                     positive=[g for g in gain_names if kind.gain(g).positive])
     consts = [
         _array("fs_p0", packed, real) if packed.size else
         "static const fs_real fs_p0[1] = {0};",
@@ -303,8 +306,10 @@ def _option_text(v: Any) -> str:
 
 def _header(name: str, upper: str, real: Real, info: Sequence[str], gain_names: Sequence[str],
             values: Sequence[float], units: Sequence[str], ts: float, n_p: int, n_s: int,
-            self_tuning: bool, law: str, feedforward: bool = False) -> str:
-    allowed = "finite and >= 0" + ("; n: > 0 or infinity" if "n" in gain_names else "")
+            self_tuning: bool, law: str, feedforward: bool = False,
+            positive: Sequence[str] = ()) -> str:
+    allowed = "finite and >= 0" + ("; n: > 0 or infinity" if "n" in gain_names else "") + (
+        "; " + ", ".join(positive) + ": finite and > 0" if positive else "")
     gains_doc = "\n".join(f" *   g[{i}] = {_c_text(g)} [{_c_text(u)}] (exported: {v!r})"
                           for i, (g, v, u) in enumerate(zip(gain_names, values, units,
                                                             strict=True)))

@@ -20,7 +20,9 @@ of its working variables), ``step`` (one sample from ``R``, ``Y``, ``RD``, ``RDD
 ``K_*``). ``FS_REAL`` stands for the type and ``FS_REAL#x`` for a literal of it. Directives:
 ``(*@ eval du(X1, X2) -> OUT *)`` and ``(*@ eval du alpha(X1, X2) -> OUT1, OUT2 *)`` evaluate
 the systems; ``(*@ if system alpha *)`` / ``(*@ if gain NAME *)``, ``(*@ else *)``,
-``(*@ end *)`` keep lines for a controller with that system or a law with that gain;
+``(*@ end *)`` keep lines for a controller with that system or a law with that gain, and
+``(*@ if constant NAME = VALUE *)`` for a controller whose packing constant has that value
+(constants are fixed per block: the branch the block can never take is not written);
 ``(*@ inf-as-zero NAME *)`` declares that the port reads the gain ``NAME`` = 0 as infinity.
 """
 
@@ -67,8 +69,11 @@ INPUTS = (
     ("HOLD_COMMAND", "command held while disabled, and from which a (re)start begins, "
                      "bumpless [-]: the valve's holding (null) command"),
 )
-_FIXED = {"ENABLE", "RESET", "COMMAND", "ALPHA", "GAIN_ERROR", "ACTIVE", "R", "Y", "RD", "RDD",
-          "Y0", "U0", "U"}
+_FIXED = {"ENABLE", "RESET", "COMMAND", "ALPHA", "GAIN_ERROR", "ACTIVE", "STARTED", "R", "Y",
+          "RD", "RDD", "Y0", "U0", "U"}
+#: The example program's variables (the block's name must differ from them).
+_EXAMPLE_VARS = ("AXIS", "POSITION_SETPOINT", "POSITION", "VELOCITY_SETPOINT",
+                 "ACCEL_SETPOINT", "NULL_COMMAND", "AXIS_ENABLE", "AXIS_RESET", "VALVE_COMMAND")
 
 
 # --- the law's port -------------------------------------------------------------------------
@@ -144,7 +149,7 @@ def _eval(systems: list[System], x1: str, x2: str, outs: list[str], real: StReal
 
 
 def _expand(lines: Sequence[str], *, systems: Mapping[str, System], gains: Sequence[str],
-            real: StReal, indent: str) -> list[str]:
+            real: StReal, indent: str, constants: Mapping[str, float]) -> list[str]:
     """The section's lines for this controller: conditionals resolved, evaluations written,
     the type and literals substituted, indented by ``indent``."""
     out: list[str] = []
@@ -162,6 +167,11 @@ def _expand(lines: Sequence[str], *, systems: Mapping[str, System], gains: Seque
                     cond = words[2] in systems
                 elif words[1:2] == ["gain"]:
                     cond = words[2] in gains
+                elif words[1:2] == ["constant"] and len(words) == 5 and words[3] == "=":
+                    if words[2] not in constants:
+                        raise ParameterError(f"an ST port tests the constant {words[2]!r}, "
+                                             f"which the law does not have")
+                    cond = constants[words[2]] == float(words[4])
                 else:
                     raise ParameterError(f"unknown condition {m.group(1)!r} in an ST port")
                 stack.append((cond, keep()))
@@ -328,6 +338,7 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
     has_alpha = bool(law.trace == "alpha" and getattr(controller, "self_tuning", True))
     packed = np.asarray(controller.pack(), dtype=np.float64).reshape(-1)
     constants = [float(v) for v in controller.law_constants()]
+    const_values = dict(zip(law.constant_names, constants, strict=True))
 
     # the fuzzy systems
     sys_tables = controller.systems() if hasattr(controller, "systems") else {}
@@ -365,9 +376,9 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
         seen.add(n)
     for n in [*upper_gains, *layout, *temps]:
         check_st_name(n, f"law {law.name}: ST variable")
-    if name.upper() in seen:
-        raise ParameterError(f"--name {name!r} is also a variable of the block; choose "
-                             f"another name")
+    if name.upper() in seen or name.upper() in _EXAMPLE_VARS:
+        raise ParameterError(f"--name {name!r} is also a variable of the block or of its "
+                             f"example program; choose another name")
 
     def lit(v: float, where: str) -> str:
         return st_literal(v, real, where)
@@ -421,9 +432,10 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
     for g, u, v in zip(gain_names, units, values, strict=True):
         spec = kind.gain(g)
         extra = " (0: infinity)" if g in inf_zero else ""
+        allowed = "finite and > 0" if spec.positive else "finite and >= 0"
         decl_in.append(f"{ind}{g.upper()} : {real} := {lit(v, 'gain ' + g)}; "
                        f"(* {st_comment_text(spec.description)} [{st_comment_text(u)}]{extra}; "
-                       f"finite and >= 0 *)")
+                       f"{allowed} *)")
     decl_out = [
         f"{ind}COMMAND : {real}; (* valve command [-], within the limits *)",
     ]
@@ -432,7 +444,7 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
                         f"sample [-] *)")
     decl_out += [
         f"{ind}GAIN_ERROR : INT; (* 0, or i: the i-th gain input (1-based, in the order "
-        f"above) is not finite and >= 0, and the block runs on the gains last accepted *)",
+        f"above) is out of its range, and the block runs on the gains last accepted *)",
         f"{ind}ACTIVE : BOOL; (* the law ran this cycle *)",
     ]
     var = [f"{ind}STARTED : BOOL; (* the state is valid (set at rest since the last enable) *)",
@@ -485,7 +497,8 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
             "GAIN_ERROR := 0;"]
     for i, g in enumerate(upper_gains):
         kw = "IF" if i == 0 else "ELSIF"
-        body += [f"{kw} NOT ({g} >= {zero} AND {g} - {g} = {zero}) THEN",
+        op = ">" if kind.gain(g.lower()).positive else ">="
+        body += [f"{kw} NOT ({g} {op} {zero} AND {g} - {g} = {zero}) THEN",
                  f"    GAIN_ERROR := {i + 1};"]
     if upper_gains:
         body.append("END_IF;")
@@ -493,7 +506,7 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
         body += [f"IF GAIN_ERROR = 0 AND ({changed}) THEN"]
         body += [f"    G_{g} := {g};" for g in upper_gains if g.lower() in law.gain_names]
         body += _expand(port.sections["pack"], systems=grids, gains=law.gain_names, real=real,
-                        indent="    ")
+                        indent="    ", constants=const_values)
         body += [f"    GL_{g} := {g};" for g in upper_gains]
         body.append("END_IF;")
     body += [
@@ -508,7 +521,7 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
         "        Y0 := MEASUREMENT;",
         "        U0 := HOLD_COMMAND;",
         *_expand(port.sections["rest"], systems=grids, gains=law.gain_names, real=real,
-                 indent="        "),
+                 indent="        ", constants=const_values),
         "        STARTED := TRUE;",
         "    END_IF;",
         "    R := SETPOINT;",
@@ -516,7 +529,7 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
         "    RD := SETPOINT_RATE;",
         "    RDD := SETPOINT_ACCEL;",
         *_expand(port.sections["step"], systems=grids, gains=law.gain_names, real=real,
-                 indent="    "),
+                 indent="    ", constants=const_values),
         "    COMMAND := U;",
     ]
     if has_alpha:
@@ -586,7 +599,7 @@ def _example(name: str, real: StReal, ts: float, what: str, feedforward: bool) -
         "END_PROGRAM",
         "",
         f"CONFIGURATION {name}_CONFIG",
-        f"    RESOURCE {name}_RESOURCE ON PLC",
+        f"    RESOURCE {name}_RES ON PLC",
         f"        TASK {name}_TASK(INTERVAL := {interval}, PRIORITY := 1);",
         f"        PROGRAM {name}_MAIN WITH {name}_TASK : {name}_EXAMPLE;",
         "    END_RESOURCE",

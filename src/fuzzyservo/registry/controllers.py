@@ -93,6 +93,9 @@ class GainSpec:
         Value while tuning when not searched; None holds the default.
     allow_inf : bool
         ``inf`` is allowed (the derivative filter n: no filter).
+    positive : bool
+        The gain must be > 0, not only >= 0 (a model gain the law divides by: smc's k_o and
+        omega_0); the exported C and Structured Text check it too.
     zero : bool
         The tuner may also set the gain to exactly 0 (a log-scale gain: below the lower end of
         its box lies a region meaning 0, :data:`fuzzyservo.analysis.tuning.ZERO_DECADES` wide),
@@ -112,6 +115,7 @@ class GainSpec:
     per_step: bool = False
     held: float | None = None
     allow_inf: bool = False
+    positive: bool = False
     zero: bool = False
     slider: tuple[float, float] | None = None
 
@@ -128,6 +132,11 @@ class GainSpec:
         if self.allow_inf:
             if not (v > 0.0) or math.isnan(v):
                 raise ParameterError(f"{where}gain {self.name} must be > 0 (inf: none), got "
+                                     f"{v!r}")
+            return v
+        if self.positive:
+            if not (math.isfinite(v) and v > 0.0):
+                raise ParameterError(f"{where}gain {self.name} must be finite and > 0, got "
                                      f"{v!r}")
             return v
         if not (math.isfinite(v) and v >= 0.0):
@@ -606,10 +615,10 @@ _CONTROLLERS: dict[str, ControllerKind] = {
                GainSpec(name="zeta_f", unit="-", description="derivative filter damping ζ_f",
                         default=1.0, log=False, slider=(0.3, 2.0)),
                GainSpec(name="k_o", unit="m/s", description="model velocity gain K_o",
-                        default=SMC_PAPER_MODEL["k_o"], slider=(0.05, 1.0)),
+                        default=SMC_PAPER_MODEL["k_o"], slider=(0.05, 1.0), positive=True),
                GainSpec(name="omega_0", unit="rad/s",
                         description="model hydraulic natural frequency ω₀",
-                        default=SMC_PAPER_MODEL["omega_0"], slider=(5.0, 100.0)),
+                        default=SMC_PAPER_MODEL["omega_0"], slider=(5.0, 100.0), positive=True),
                GainSpec(name="delta", unit="-", description="model hydraulic damping ratio δ",
                         default=SMC_PAPER_MODEL["delta"], log=False, slider=(0.0, 1.0))),
         options=(INTEGRAL_ACTION, REFERENCE_JERK, U_MIN, U_MAX), colour="#17becf"),
