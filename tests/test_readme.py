@@ -4,12 +4,15 @@ The README is parsed: each ```sh block's commands run in order (``fuzzyservo ...
 through ``fuzzyservo.cli.main``; ``gcc`` and ``./PROGRAM`` as processes; ``make reproduce`` is
 the Makefile's recipe, which the session's ``reproduced`` fixture runs once for this and the
 study's tests; ``make test`` is this suite and is not run again), each ```python block is
-executed, each ```pycon block is run as a doctest, and a ```c block is the file its first
-comment names (``/* NAME.c: ... */``). Every block runs in a scratch folder in which ``src``
-points at this repository's ``src/``, as a user's shell in a clone would; in a chained section
-(:data:`CHAINED`) the blocks above it in the section run first. Every shell command must have
-a check below that holds it to what the README says of it; a command without one fails the
-suite, so an example added without a check, or one that stops doing what it says, is caught.
+executed, each ```pycon block is run as a doctest, a ```c block is the file its first
+comment names (``/* NAME.c: ... */``), and an ```iecst block (Structured Text) is likewise the
+file ``(* NAME.st: ... *)`` names, translated by MatIEC's ``iec2c`` after the Structured Text
+the commands above it wrote, and MatIEC's C compiled by gcc. Every block runs in a scratch
+folder in which ``src`` points at this repository's ``src/``, as a user's shell in a clone
+would; in a chained section (:data:`CHAINED`) the blocks above it in the section run first.
+Every shell command must have a check below that holds it to what the README says of it; a
+command without one fails the suite, so an example added without a check, or one that stops
+doing what it says, is caught.
 """
 
 from __future__ import annotations
@@ -236,6 +239,41 @@ def _export_c(d: Path, out: str) -> None:
     assert sorted(p.name for p in (d / "ctl").iterdir()) == ["stfpi.c", "stfpi.h"]
 
 
+def _export_st(d: Path, out: str) -> None:
+    block, example = (d / "plc" / "stfpi_ctl.st").read_text(), (
+        d / "plc" / "stfpi_ctl_example.st").read_text()
+    assert sorted(p.name for p in (d / "plc").iterdir()) == ["stfpi_ctl.st",
+                                                             "stfpi_ctl_example.st"]
+    # "one FUNCTION_BLOCK", "the gains are inputs whose defaults are the exported values",
+    # "the rule tables are VAR CONSTANT arrays", "a cyclic task of the sample time (here 1 ms)"
+    assert block.count("FUNCTION_BLOCK stfpi_ctl\n") == 1 and "END_FUNCTION_BLOCK" in block
+    inputs = block[block.index("VAR_INPUT\n"):block.index("END_VAR")]
+    assert "    KE : LREAL := 34.02696824542279;" in inputs
+    constants = block[block.index("VAR CONSTANT\n"):]
+    assert "    DU_RULES : ARRAY[0..6, 0..6] OF DINT := [" in constants
+    assert "ALPHA_RULES : ARRAY[0..6, 0..6] OF DINT" in constants
+    assert "PROGRAM stfpi_ctl_EXAMPLE" in example and "CONFIGURATION stfpi_ctl_CONFIG" in example
+    assert "TASK stfpi_ctl_TASK(INTERVAL := T#1ms, PRIORITY := 1);" in example
+    # "MatIEC translates both"
+    _iec2c(block + "\n" + example, d / "iec2c-export", "stfpi_ctl_example.st")
+
+
+def _iec2c(text: str, folder: Path, name: str) -> None:
+    """MatIEC translates ``text`` into C, and gcc compiles that C with MatIEC's headers."""
+    from tests.export.cbuild import gcc
+    from tests.export.st_harness import matiec_prefix, translate
+
+    done = translate(text, folder, name)
+    assert done.returncode == 0, f"iec2c refused {name}:\n{done.stdout}{done.stderr}"
+    shim = folder / "c" / "shim.c"
+    shim.write_text('#include "iec_std_lib.h"\n#include "POUS.h"\n#include "POUS.c"\n')
+    built = subprocess.run([gcc(), "-std=gnu11", "-w", "-fsyntax-only", "-I",
+                            str(matiec_prefix() / "lib" / "C"), "-I", str(shim.parent),
+                            str(shim)], capture_output=True, text=True, check=False,
+                           timeout=300)
+    assert built.returncode == 0, f"gcc refused MatIEC's C of {name}:\n{built.stderr}"
+
+
 def _recorded(d: Path, out: str) -> None:
     assert len(read_run_csv(d / "recorded.csv").t) == 2001
 
@@ -330,6 +368,7 @@ def _fmu(name: str, identifier: str) -> Check:
 
 CHECKS: dict[str, Check] = {
     "fuzzyservo export c --gains": _export_c,
+    "fuzzyservo export st --gains": _export_st,
     "fuzzyservo simulate --duration 2 --gains": _recorded,
     "gcc -std=c99 -O2 -Ictl": _gcc_driver,
     "./driver recorded.csv": _driver_run,
@@ -385,8 +424,8 @@ def scratch(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 def test_readme_has_the_two_commands_first() -> None:
     first = BLOCKS[0]
     assert first.lang == "sh" and _commands(first) == ["make reproduce", "make test"]
-    assert {b.lang for b in BLOCKS} <= {"sh", "python", "pycon", "c"}
-    assert all(b.section in CHAINED for b in BLOCKS if b.lang == "c")
+    assert {b.lang for b in BLOCKS} <= {"sh", "python", "pycon", "c", "iecst"}
+    assert all(b.section in CHAINED for b in BLOCKS if b.lang in ("c", "iecst"))
 
 
 #: Sections whose blocks build on each other (a file one writes, the next compiles): before a
@@ -394,9 +433,14 @@ def test_readme_has_the_two_commands_first() -> None:
 CHAINED = {"To hardware", "Robustness sweeps"}
 
 
-def _c_file(block: Block) -> str:
-    m = re.match(r"/\* ([\w.-]+\.c): ", block.text)
-    assert m, f"README line {block.line}: a C block starts with /* NAME.c: ... */"
+def _source_file(block: Block) -> str:
+    """The file a ```c or ```iecst block is: its first comment names it."""
+    if block.lang == "c":
+        m = re.match(r"/\* ([\w.-]+\.c): ", block.text)
+        assert m, f"README line {block.line}: a C block starts with /* NAME.c: ... */"
+    else:
+        m = re.match(r"\(\* ([\w.-]+\.st): ", block.text)
+        assert m, f"README line {block.line}: an ST block starts with (* NAME.st: ... *)"
     return m.group(1)
 
 
@@ -427,8 +471,8 @@ def _replay_before(block: Block, scratch: Path, capsys: pytest.CaptureFixture[st
             break
         if b.section != block.section:
             continue
-        if b.lang == "c":
-            (scratch / _c_file(b)).write_text(b.text, encoding="utf-8")
+        if b.lang in ("c", "iecst"):
+            (scratch / _source_file(b)).write_text(b.text, encoding="utf-8")
         elif b.lang == "sh":
             for cmd in _commands(b):
                 _run_command(b, cmd, scratch, capsys)
@@ -518,6 +562,19 @@ def test_python_block(block: Block, scratch: Path,
 def test_every_written_file_is_in_a_block() -> None:
     text = "".join(b.text for b in BLOCKS if b.lang == "python")
     assert all(f'"{name}"' in text for name in WRITTEN)
+
+
+@pytest.mark.parametrize("block", [b for b in BLOCKS if b.lang == "iecst"], ids=lambda b: b.id)
+def test_iecst_block(block: Block, scratch: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A Structured Text block calls what the commands above it exported, as they wrote it:
+    translated after every function block they wrote (not their examples: one program of the
+    README's is enough), it is a valid program to MatIEC and its C to gcc."""
+    _replay_before(block, scratch, capsys)
+    blocks = sorted(p for p in scratch.glob("*/*.st")
+                    if p.parent.name != "src" and not p.name.endswith("_example.st"))
+    assert blocks, f"README line {block.line}: no Structured Text exported above the block"
+    text = "\n".join(p.read_text(encoding="utf-8") for p in blocks)
+    _iec2c(text + "\n" + block.text, scratch / "iec2c-readme", _source_file(block))
 
 
 @pytest.mark.parametrize("block", [b for b in BLOCKS if b.lang == "pycon"], ids=lambda b: b.id)

@@ -309,6 +309,19 @@ def test_the_downloads_are_what_the_commands_read_and_write(page: Page,
     want_files = {f.name: f.read_text() for f in out.iterdir()}
     assert sorted(got) == ["fpi.c", "fpi.h"]
     assert got == want_files
+    # the Structured Text likewise: its block records the command, which writes the same bytes
+    zipped = download(page, "fs-dl-st", tmp_path)
+    assert zipped.name == "fpi-st.zip"
+    command = ["export", "st", "--controller", "fpi", "--gains", gains_shown(page, names),
+               "--ts", "0.001", "--out", "fpi-st"]
+    done = subprocess.run([EXE, *command], capture_output=True, text=True, cwd=tmp_path,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr
+    with zipfile.ZipFile(zipped) as z:
+        st_files = {n: z.read(n) for n in z.namelist()}
+    assert sorted(st_files) == ["fpi_ctl.st", "fpi_ctl_example.st"]
+    assert f"command:     fuzzyservo {shlex.join(command)}\n" in st_files["fpi_ctl.st"].decode()
+    assert st_files == {f.name: f.read_bytes() for f in (tmp_path / "fpi-st").iterdir()}
     # the FMU: built by the C compiler, read by FMPy, its gains are the page's
     from fmpy import read_model_description
 

@@ -4,11 +4,13 @@ the command's, for every controller of the registry and both plant models."""
 from __future__ import annotations
 
 import contextlib
+import html
 import io
 import shlex
 import socket
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import pytest
@@ -197,3 +199,60 @@ def test_the_page_reads_its_load_force_box(tmp_path: Path) -> None:
     page.w_load.value = " step:-300:0.2 "
     assert page.read_settings().load_force == "step:-300:0.2"
     assert "--load-force=step:-300:0.2" in page.w_command.value
+
+
+def _zip_files(buf: io.BytesIO | None) -> dict[str, bytes]:
+    assert buf is not None
+    with zipfile.ZipFile(buf) as z:
+        return {n: z.read(n) for n in z.namelist()}
+
+
+def test_the_structured_text_download_is_what_its_command_writes(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The page's Structured Text zip (a page built without a browser) holds the two files of
+    ``export st``; the block records that command with the download's name, and the command,
+    run in the download's folder, writes the same bytes. The self-tuning kind, with a gain
+    moved, so both rule tables and the page's gains travel."""
+    from fuzzyservo.app.page import ServoPage
+
+    page = ServoPage(workdir=tmp_path / "page")
+    page.w_controller.value = "stfpi"
+    page.gain_rows["ke"].box.value = 20.5
+    got = _zip_files(page._st_file())
+    assert page.d_st.filename == "stfpi-st.zip"
+    assert sorted(got) == ["stfpi_ctl.st", "stfpi_ctl_example.st"]
+    block = got["stfpi_ctl.st"].decode()
+    assert "    KE : LREAL := 20.5;" in block and "ALPHA_RULES : ARRAY" in block
+    recorded = [ln.split("command:", 1)[1] for ln in block.splitlines()
+                if ln.lstrip().startswith("command:")]
+    assert len(recorded) == 1
+    argv = shlex.split(recorded[0])
+    assert argv[:3] == ["fuzzyservo", "export", "st"] and argv[-2:] == ["--out", "stfpi-st"]
+    assert argv[1:] == page._export_args("st", "stfpi-st")
+    monkeypatch.chdir(tmp_path)
+    status, _, err = printed(argv[1:])
+    assert status == 0, err
+    assert got == {f.name: f.read_bytes() for f in (tmp_path / "stfpi-st").iterdir()}
+
+
+def test_a_general_fuzzy_system_is_refused_by_the_structured_text_download_as_by_the_command(
+        tmp_path: Path) -> None:
+    """Structured Text takes the paper's uniform-grid systems only: a system file of another
+    form makes the download show the command's one line, and no file."""
+    from fuzzyservo.app.page import ServoPage
+
+    paper = Path(__file__).resolve().parents[2] / "src/fuzzyservo/data/systems/paper-du.fis"
+    zo = "MF4='ZO':'trimf',[-0.3333333333333333 0 0.3333333333333333]"
+    general = tmp_path / "general-du.fis"
+    general.write_text(paper.read_text().replace(zo, "MF4='ZO':'gaussmf',[0.15 0]", 1))
+    page = ServoPage(workdir=tmp_path / "page")
+    page.w_controller.value = "fpi"
+    page.systems["du"] = str(general)
+    page.submit()
+    assert page._st_file() is None
+    status, _, err = printed([*page._export_args("st", str(tmp_path / "fpi-st"))])
+    assert status == 2 and "general fuzzy system" in err
+    assert page.w_error.visible and page.w_error.object == html.escape(err.strip())
+    assert not (tmp_path / "fpi-st").exists()
+    # the other downloads still work: C takes any system
+    assert sorted(_zip_files(page._c_file())) == ["fpi.c", "fpi.h"]

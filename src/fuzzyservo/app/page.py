@@ -724,6 +724,10 @@ class ServoPage:
         self.d_fmu = pn.widgets.FileDownload(callback=self._fmu_file, filename="controller.fmu",
                                              label="controller as FMU (.fmu)",
                                              css_classes=["fs-dl-fmu"])
+        self.d_st = pn.widgets.FileDownload(callback=self._st_file, filename="controller-st.zip",
+                                            label="controller as IEC 61131-3 Structured Text "
+                                                  "(.zip)",
+                                            css_classes=["fs-dl-st"])
         # tuner
         self.w_objective = pn.widgets.Select(name="objective", options=["itae", "iae", "ise"],
                                              value="itae", width=100)
@@ -800,12 +804,24 @@ class ServoPage:
         the files record that command with ``--out shown``, the name the download has (so
         that command, run in the folder of the download, writes the same files byte for
         byte)."""
-        from ..export.targets import export_c, export_controller_fmu, generate_c
+        from ..export.targets import (
+            export_c,
+            export_controller_fmu,
+            export_st,
+            generate_c,
+            generate_st,
+        )
         from ..run import systems_record
 
         spec = self._shown().run_spec()
         ctl = spec.build_controller()
         command = "fuzzyservo " + shlex.join(self._export_args(target, shown))
+        if target == "st":
+            st = generate_st(spec.controller, ctl.gains, ts=spec.ts, systems=ctl.systems,
+                             options=ctl.options, real="LREAL", name=None,
+                             systems_record=systems_record(ctl.systems), command=command)
+            export_st(st, out)
+            return
         cc = generate_c(spec.controller, ctl.gains, ts=spec.ts, systems=ctl.systems,
                         options=ctl.options, real="double", name=None,
                         systems_record=systems_record(ctl.systems), command=command)
@@ -814,21 +830,30 @@ class ServoPage:
         else:
             export_controller_fmu(cc, out, command=command)
 
-    def _c_file(self) -> io.BytesIO | None:
+    def _zipped_export(self, target: str, download: Any) -> io.BytesIO | None:
+        """The folder ``fuzzyservo export TARGET`` writes, as ``<controller>-TARGET.zip``
+        (the files flat, as the folder holds them); None after showing an error."""
         try:
             with tempfile.TemporaryDirectory() as d:
-                out = Path(d) / "c"
-                self._export("c", out, f"{self._shown().controller}-c")
+                shown = f"{self._shown().controller}-{target}"
+                out = Path(d) / target
+                self._export(target, out, shown)
                 buf = io.BytesIO()
                 with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
                     for f in sorted(out.iterdir()):
                         z.write(f, f.name)
                 buf.seek(0)
-                self.d_c.filename = f"{self._shown().controller}-c.zip"
+                download.filename = f"{shown}.zip"
                 return buf
         except Exception as exc:
             self._show_error(exc)
             return None
+
+    def _c_file(self) -> io.BytesIO | None:
+        return self._zipped_export("c", self.d_c)
+
+    def _st_file(self) -> io.BytesIO | None:
+        return self._zipped_export("st", self.d_st)
 
     def _fmu_file(self) -> io.BytesIO | None:
         try:
@@ -1112,7 +1137,7 @@ class ServoPage:
         export = pn.Column(
             pn.pane.Markdown("Download what the page shows; the command beside the plots "
                              "makes the same run."),
-            self.d_gains, self.d_csv, self.d_c, self.d_fmu)
+            self.d_gains, self.d_csv, self.d_c, self.d_st, self.d_fmu)
         self.tabs = pn.Tabs(("Response", response), ("Tune", tuner), ("Fuzzy systems", systems),
                             ("Export", export), dynamic=False, sizing_mode="stretch_width",
                             css_classes=["fs-tabs"])
