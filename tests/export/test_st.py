@@ -32,7 +32,7 @@ from fuzzyservo.export._st import check_st_name, st_comment_text, st_literal
 from fuzzyservo.export.st import STController
 from fuzzyservo.export.targets import generate_c, generate_st
 from fuzzyservo.files import read_gains_file
-from fuzzyservo.formats import read_system
+from fuzzyservo.formats import loads, read_system
 from fuzzyservo.fuzzy.loop import loop_system
 from fuzzyservo.registry import build_controller, controller_kind, controller_names
 from tests.export.cbuild import gcc
@@ -50,6 +50,7 @@ from tests.export.test_controller_c import (
     _run,
 )
 
+ROOT = Path(__file__).resolve().parents[2]
 #: |u_ST - u_py| bound in LREAL [-] (the acceptance).
 LREAL_TOL = 1e-12
 N_RANDOM = 2000
@@ -192,6 +193,66 @@ def test_systems_of_the_shipped_files(kind: str, case: tuple[str, dict[str, Any]
     assert worst <= LREAL_TOL, worst
 
 
+UNEVEN = Path(__file__).with_name("data") / "uneven.fll"
+
+
+def _partition_cases() -> list[tuple[str, dict[str, Any], dict[str, float]]]:
+    """Systems that take the general evaluator's partition path: the paper's two packed for
+    the general evaluator, and an uneven 5 x 3 table with shoulder ramps and two empty cells,
+    with min and with product AND and implication."""
+    paper = {"du": loop_system(read_system(SYSTEMS / "paper-du.fis"), grid=False),
+             "alpha": loop_system(read_system(SYSTEMS / "paper-alpha.fll"), grid=False)}
+    text = UNEVEN.read_text()
+    prod = text.replace("conjunction: Minimum", "conjunction: AlgebraicProduct").replace(
+        "implication: Minimum", "implication: AlgebraicProduct")
+    gains = {"ke": 8.0, "kde": 1500.0, "kdu": 0.02}
+    out = [("paper", paper, dict(read_gains_file(GAINS / "linear-stfpi.toml").gains))]
+    for name, src in (("uneven-min", text), ("uneven-prod", prod)):
+        du = loop_system(loads(src, "fll"), source=name)
+        out.append((name, {"du": du, "alpha": paper["alpha"]}, gains))
+    for _name, systems, _g in out:
+        assert all(s.packed.path == "partition" for s in systems.values())
+    return out
+
+
+@pytest.mark.parametrize("case", _partition_cases(), ids=lambda c: c[0])
+@pytest.mark.parametrize("kind", ["fpi", "stfpi"])
+def test_partition_systems(kind: str, case: tuple[str, dict[str, Any], dict[str, float]],
+                           tmp_path: Path) -> None:
+    """Rule tables over fuzzy partitions (the general evaluator's fast path, ported to ST):
+    LREAL equals the Python on both plants; --real equals the float C on a random
+    sequence."""
+    _name, systems, gains = case
+    use = {r: s for r, s in systems.items() if r in controller_kind(kind).systems}
+    st = generate_st(kind, gains, ts=TS, systems=use)
+    assert "DU_PI : ARRAY" in st.block and "FOR " not in st.block
+    block = _block(st, tmp_path / "st")
+    worst = moved = 0.0
+    for plant_name in ("linear", "nonlinear"):
+        for ref in (0.1, -0.05):
+            block.dll.st_init()
+            plant, res = _run(kind, gains, plant_name, options={}, systems=use, reference=ref)
+            u = _replay(block, res, plant)
+            worst = max(worst, float(np.max(np.abs(u - res.u))))
+            moved = max(moved, float(np.ptp(res.u)))
+    assert moved > 1e-3
+    assert worst <= LREAL_TOL, worst
+
+    rng = np.random.default_rng(5)
+    st32 = generate_st(kind, gains, ts=TS, systems=use, real="REAL")
+    b32 = _block(st32, tmp_path / "st32")
+    cc = generate_c(kind, gains, ts=TS, systems=use, real="float", name=f"c_{kind}")
+    c = CStep(build(cc, tmp_path / "c"), cc)
+    n = N_RANDOM
+    r = _f32(0.5 + np.repeat(rng.uniform(-0.02, 0.02, n // 200), 200))
+    y = _f32(0.5 + np.cumsum(rng.normal(0.0, 2e-5, n)))
+    c.init(y[0], 0.0)
+    u_c = np.array([c.step(r[k], y[k]) for k in range(n)])
+    u32 = b32.run(b32.rows(r, y))[:, 0]
+    assert np.ptp(u_c) > 1e-3
+    assert np.array_equal(u32, u_c), float(np.max(np.abs(u32 - u_c)))
+
+
 def _f32(a: np.ndarray) -> np.ndarray:
     return np.asarray(a, dtype=np.float32).astype(np.float64)
 
@@ -301,12 +362,12 @@ def test_example_program_runs_as_a_configuration(tmp_path: Path) -> None:
     proc = translate(st.block + "\n" + st.example, tmp_path, "project.st")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     c_dir = tmp_path / "c"
-    res = f"{st.name}_RESOURCE".upper()
+    res = f"{st.name}_RES".upper()
     inst = f"{res}__{st.name.upper()}_MAIN"
     main = f"""
 #include <stdio.h>
 #include "{st.name}_CONFIG.c"
-#include "{st.name}_RESOURCE.c"
+#include "{st.name}_RES.c"
 int main(void)
 {{
     unsigned long tick;
@@ -429,11 +490,14 @@ def test_bad_block_names_are_refused(name: str) -> None:
 
 
 def test_general_systems_and_portless_laws_are_refused() -> None:
-    """A system of the general evaluator (here the paper's, packed without the uniform-grid
-    path) and a law without an ST port: one line each, naming what is allowed."""
-    general = {"du": loop_system(read_system(SYSTEMS / "paper-du.fis"), grid=False)}
-    with pytest.raises(ParameterError, match="uniform triangular partitions"):
-        generate_st("fpi", {"ke": 3.0, "kde": 1.0, "kdu": 0.01}, ts=TS, systems=general)
+    """A system of the general evaluator's other paths (here smooth shapes) and a law without
+    an ST port: one line each, naming what is allowed."""
+    smooth = read_system(ROOT / "tests" / "formats" / "data" / "fis" / "all_mfs.fis")
+    o0, o1 = smooth.outputs[0].range
+    du = loop_system(smooth, no_rule_value=0.5 * (o0 + o1))
+    assert du.packed.path == "smooth"
+    with pytest.raises(ParameterError, match="rules form a table over fuzzy partitions"):
+        generate_st("fpi", {"ke": 3.0, "kde": 1.0, "kdu": 0.01}, ts=TS, systems={"du": du})
     from fuzzyservo.export.st import emit_st
     from tests.export.feedforward_law import FeedForwardController  # a user's law with C only
 
