@@ -31,6 +31,7 @@ from __future__ import annotations
 import hashlib
 import math
 import re
+import unicodedata
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -266,6 +267,30 @@ class STController:
         return {f"{self.name}.st": self.block, f"{self.name}_example.st": self.example}
 
 
+#: Greek letters and marks of the package's own field descriptions, as ASCII words (the
+#: descriptions are ours; text from outside keeps :func:`st_comment_text`'s reversible escapes).
+_ASCII = str.maketrans({"Δ": "Delta ", "α": "alpha", "β": "beta", "δ": "delta", "ζ": "zeta",
+                        "λ": "lambda", "φ": "phi", "ψ": "psi", "ω": "omega", "σ": "sigma",
+                        "ŷ": "y^", "ẋ": "x'", "ẍ": "x''", "ė": "e'", "ë": "e''", "∫": "int ",
+                        "₀": "0", "²": "^2", "³": "^3", "≤": "<=", "≥": ">=", "−": "-",
+                        "·": "*", "…": "..."})
+
+
+def _greek(ch: str) -> str:
+    name = unicodedata.name(ch, "")
+    if name.startswith("GREEK SMALL LETTER "):
+        return name.removeprefix("GREEK SMALL LETTER ").lower()
+    if name.startswith("GREEK CAPITAL LETTER "):
+        return name.removeprefix("GREEK CAPITAL LETTER ").capitalize()
+    return ch
+
+
+def _doc(text: str) -> str:
+    """One of the package's own descriptions in an ST comment, readable in ASCII."""
+    return st_comment_text("".join(_greek(c) for c in text.translate(_ASCII))
+                           .replace("Delta  ", "Delta "))
+
+
 def _tables_digest(tables: Sequence[Any]) -> str:
     h = hashlib.sha256()
     for a in tables:
@@ -434,7 +459,7 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
         extra = " (0: infinity)" if g in inf_zero else ""
         allowed = "finite and > 0" if spec.positive else "finite and >= 0"
         decl_in.append(f"{ind}{g.upper()} : {real} := {lit(v, 'gain ' + g)}; "
-                       f"(* {st_comment_text(spec.description)} [{st_comment_text(u)}]{extra}; "
+                       f"(* {_doc(spec.description)} [{_doc(u)}]{extra}; "
                        f"{allowed} *)")
     decl_out = [
         f"{ind}COMMAND : {real}; (* valve command [-], within the limits *)",
@@ -453,11 +478,11 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
     for i, f in enumerate(law.params):
         var.append(f"{ind}P_{f.name.upper()} : {real} := "
                    f"{lit(float(packed[i]), 'P_' + f.name.upper())}; "
-                   f"(* {st_comment_text(f.doc)} [{st_comment_text(f.unit)}] *)")
+                   f"(* {_doc(f.doc)} [{_doc(f.unit)}] *)")
     var.append(f"{ind}(* state *)")
     for f in law.state:
-        var.append(f"{ind}S_{f.name.upper()} : {real}; (* {st_comment_text(f.doc)} "
-                   f"[{st_comment_text(f.unit)}] *)")
+        var.append(f"{ind}S_{f.name.upper()} : {real}; (* {_doc(f.doc)} "
+                   f"[{_doc(f.unit)}] *)")
     var.append(f"{ind}(* the gains last accepted (the packed parameters are theirs), and the "
                f"law's gains *)")
     for g, v in zip(gain_names, values, strict=True):
@@ -465,12 +490,12 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
     const: list[str] = []
     for f in law.gains:
         if f.name in gain_names:
-            var.append(f"{ind}G_{f.name.upper()} : {real}; (* {st_comment_text(f.doc)} "
-                       f"[{st_comment_text(f.unit)}] *)")
+            var.append(f"{ind}G_{f.name.upper()} : {real}; (* {_doc(f.doc)} "
+                       f"[{_doc(f.unit)}] *)")
         else:
             v = _value(float(merged[f.name]), f.name, inf_zero, f"gain {f.name}")
             const.append(f"{ind}G_{f.name.upper()} : {real} := {lit(v, 'gain ' + f.name)}; "
-                         f"(* {st_comment_text(f.doc)} [{st_comment_text(f.unit)}], fixed by "
+                         f"(* {_doc(f.doc)} [{_doc(f.unit)}], fixed by "
                          f"the controller {st_comment_text(kind.name)} *)")
     var.append(f"{ind}(* the law's working variables *)")
     var += [f"{ind}{_typed(ln.strip(), real)}" for ln in port.sections["temps"] if ln.strip()]
@@ -482,8 +507,8 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
     const.append(f"{ind}(* packing constants *)")
     for f, v in zip(law.constants, constants, strict=True):
         const.append(f"{ind}K_{f.name.upper()} : {real} := "
-                     f"{lit(v, 'K_' + f.name.upper())}; (* {st_comment_text(f.doc)} "
-                     f"[{st_comment_text(f.unit)}] *)")
+                     f"{lit(v, 'K_' + f.name.upper())}; (* {_doc(f.doc)} "
+                     f"[{_doc(f.unit)}] *)")
     for grid in grids.values():
         if isinstance(grid, GridSystem):
             const += [f"{ind}{ln}" for ln in st_tables(grid, real)]
@@ -548,7 +573,7 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
         "END_FUNCTION_BLOCK",
         "",
     ])
-    example = _example(name, real, ts, info[0], law.feedforward)
+    example = _example(name, real, ts, f"controller {kind.name}, {title}", law.feedforward)
     return STController(name=name, kind=kind.name, block=block, example=example, real=real,
                         gain_names=tuple(upper_gains), gains=values, ts=ts,
                         self_tuning=has_alpha, feedforward=bool(law.feedforward),
@@ -570,9 +595,9 @@ def _example(name: str, real: StReal, ts: float, what: str, feedforward: bool) -
     ff = ("the reference's velocity and acceleration from the motion profile (this law uses "
           "them)" if feedforward else "0 (this law ignores them)")
     info = [
-        f"{name}_example.st: a PROGRAM running the block {name} ({what.split(':', 1)[1].strip()})",
-        f"every {ts!r} s, and a CONFIGURATION with that cyclic task, as a PLC project",
-        "starts from them. Map the variables marked I/O to the axis (docs/export-st.md).",
+        f"{name}_example.st: a PROGRAM running the block {name} ({what}) every {ts!r} s,",
+        "and a CONFIGURATION with that cyclic task, as a PLC project starts from them. Map the",
+        "variables marked I/O to the axis (docs/export-st.md).",
         "Compile it together with the block: iec2c needs both in one file or as a library.",
     ]
     interval = _task_interval(ts)

@@ -586,12 +586,11 @@ def st_partition_eval(g: PartitionSystem, x1: str, x2: str, out: str, real: StRe
     zero, one, half = (st_typed(v, real) for v in (0.0, 1.0, 0.5))
     tol = st_typed(1e-15 if real == "LREAL" else float(np.float32(1e-15 * 536870912.0)),
                    real)
-    default = 0.0 if math.isnan(g.default) else g.default
     i2, i3, i4, i5 = (ind + "    " * k for k in (1, 2, 3, 4))
     lines = [f"{ind}FZ_IN1 := {x1};", f"{ind}FZ_IN2 := {x2};",
              f"{ind}IF FZ_IN1 <> FZ_IN1 OR FZ_IN2 <> FZ_IN2 THEN (* a NaN input: NaN *)",
              f"{i2}{out} := FZ_IN1 + FZ_IN2;", f"{ind}ELSE"]
-    for k, (name, (lo, hi)) in enumerate(zip(("FZ_IN1", "FZ_IN2"), g.ranges, strict=True)):
+    for k, name in enumerate(("FZ_IN1", "FZ_IN2")):
         lines.append(f"{i2}FZ_XIN[{k}] := {name};")
         if g.clip[k]:
             lines += [f"{i2}IF FZ_XIN[{k}] < {p}_XLO{k} THEN",
@@ -827,7 +826,6 @@ def st_partition_eval(g: PartitionSystem, x1: str, x2: str, out: str, real: StRe
               f"{i3}{out} := {p}_DEFAULT; (* no rule fired *)",
               f"{i2}END_IF;",
               f"{ind}END_IF;"]
-    del default
     return _while_loops(lines)
 
 
