@@ -36,7 +36,7 @@ from ._c import (
     check_identifier,
 )
 
-__all__ = ["CController", "check_c_name", "emit_controller"]
+__all__ = ["CController", "check_c_name", "emit_controller", "option_text", "tables_digest"]
 
 
 def check_c_name(name: str) -> str:
@@ -108,7 +108,7 @@ class CController:
         return {f"{self.name}.h": self.header, f"{self.name}.c": self.source}
 
 
-def _tables_digest(tables: Sequence[Any]) -> str:
+def tables_digest(tables: Sequence[Any]) -> str:
     h = hashlib.sha256()
     for a in tables:
         arr = np.ascontiguousarray(a)
@@ -240,10 +240,10 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
     port = Path(law.c_source).read_text(encoding="utf-8")
     laws = _layout(law) + "\n" + port
     has_alpha = bool(law.trace == "alpha" and getattr(controller, "self_tuning", True))
-    digest = _tables_digest(tables) if tables else ""
+    digest = tables_digest(tables) if tables else ""
 
     options = ", ".join(
-        f"{o} = {_option_text(getattr(controller, o))}" for o in kind.option_names
+        f"{o} = {option_text(getattr(controller, o))}" for o in kind.option_names
         if hasattr(controller, o)) or "none"
     title = law.title if not has_alpha else f"{law.title}, self-tuning"
     info = [
@@ -296,7 +296,7 @@ def emit_controller(kind: ControllerKind, gains: Mapping[str, float], controller
                        feedforward=bool(law.feedforward))
 
 
-def _option_text(v: Any) -> str:
+def option_text(v: Any) -> str:
     if v is None:
         return "default"
     if isinstance(v, str):

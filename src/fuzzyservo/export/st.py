@@ -28,7 +28,6 @@ the systems; ``(*@ if system alpha *)`` / ``(*@ if gain NAME *)``, ``(*@ else *)
 
 from __future__ import annotations
 
-import hashlib
 import math
 import re
 import unicodedata
@@ -43,6 +42,7 @@ from .. import __version__
 from ..errors import ParameterError
 from ..registry import ControllerKind
 from ._st import StReal, check_st_name, st_comment, st_comment_text, st_literal, st_typed
+from .controller_c import option_text, tables_digest
 from .st_fuzzy import (
     GridSystem,
     PartitionSystem,
@@ -291,22 +291,6 @@ def _doc(text: str) -> str:
                            .replace("Delta  ", "Delta "))
 
 
-def _tables_digest(tables: Sequence[Any]) -> str:
-    h = hashlib.sha256()
-    for a in tables:
-        arr = np.ascontiguousarray(a)
-        h.update(str(arr.dtype).encode() + str(arr.shape).encode() + arr.tobytes())
-    return h.hexdigest()
-
-
-def _option_text(v: Any) -> str:
-    if v is None:
-        return "default"
-    if isinstance(v, str):
-        return v
-    return repr(v)
-
-
 def _value(v: float, gain: str, inf_zero: frozenset[str], where: str) -> float:
     if math.isinf(v) and v > 0 and gain in inf_zero:
         return 0.0
@@ -379,7 +363,7 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
             grids[role] = partition_system(role.upper(), tab[0], tab[1])
         tables += list(tab)
     parts = [s for s in grids.values() if isinstance(s, PartitionSystem)]
-    digest = _tables_digest(tables) if tables else ""
+    digest = tables_digest(tables) if tables else ""
 
     # names: the block's interface, the layout, the port's and the evaluator's variables
     upper_gains = [g.upper() for g in gain_names]
@@ -410,7 +394,7 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
 
     # --- header
     options = ", ".join(
-        f"{o} = {_option_text(getattr(controller, o))}" for o in kind.option_names
+        f"{o} = {option_text(getattr(controller, o))}" for o in kind.option_names
         if hasattr(controller, o)) or "none"
     title = law.title if not has_alpha else f"{law.title}, self-tuning"
     info = [
