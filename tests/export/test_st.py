@@ -339,6 +339,31 @@ def test_online_gain_change_bad_gain_enable_and_reset(kind: str, tmp_path: Path)
     assert float(np.max(np.abs(u - ref))) <= LREAL_TOL
 
 
+def test_a_model_gain_of_zero_is_refused_online(tmp_path: Path) -> None:
+    """smc's k_o and omega_0 divide: the block refuses 0 for them (GAIN_ERROR names the
+    input, the gains last accepted stay), as the registry and the C export's set_gains do."""
+    g = dict(read_gains_file(GAINS / "linear-smc.toml").gains)
+    st = generate_st("smc", g, ts=TS)
+    assert "K_O : LREAL" in st.block and "K_O > 0.0" in st.block
+    block = _block(st, tmp_path / "st")
+    n = 200
+    r, y = np.full(n, 0.31), 0.3 + 1e-4 * np.sin(np.arange(n))
+    gains = np.tile(_input_gains(st, g), (n, 1))
+    k_o = st.gain_names.index("K_O")
+    gains[100:, k_o] = 0.0
+    out = block.run(block.rows(r, y, gains=gains))
+    assert np.all(out[:100, 2] == 0) and np.all(out[100:, 2] == k_o + 1)
+    c = build_controller("smc", g, dt=TS)
+    ref = _python(c, r, y, rd=np.zeros(n), rdd=np.zeros(n), u0=0.0)
+    assert np.all(np.isfinite(out[:, 0])) and np.array_equal(out[:, 0], ref)
+    cc = generate_c("smc", g, ts=TS, name="c_smc")
+    cs = CStep(build(cc, tmp_path / "c"), cc)
+    cs.init(0.3, 0.0)
+    bad = [g[k] for k in controller_kind("smc").gain_names]
+    bad[k_o] = 0.0
+    assert cs.set_gains(bad) == k_o + 1
+
+
 def test_bumpless_start() -> None:
     """With the setpoint at the measurement, the first enabled cycle returns HOLD_COMMAND,
     for every kind (the block's start is the simulator's rest)."""
