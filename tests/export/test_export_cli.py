@@ -162,6 +162,8 @@ def test_export_st_writes_blocks_that_matiec_translates(
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert main([*argv, "--real"]) == 0
     assert "REAL" in block.read_text() and "LREAL" not in block.read_text()
+    proc = translate(block.read_text() + "\n" + example.read_text(), tmp_path / "matiec32")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "wrote" in capsys.readouterr().out
 
 

@@ -187,12 +187,12 @@ def _rest(packed: FloatArray, y0: float, u0: float) -> FloatArray:
     return out
 
 
-#: The law: its layout, step, packing and C port (``ffpd.c``).
+#: The law: its layout, step, packing, C port (``ffpd.c``) and ST port (``ffpd.st``).
 FFPD_LAW = Law(name="ffpd", title="position control with feed-forward", params=PARAMS,
                state=STATE, gains=GAINS, constants=CONSTANTS, step=ffpd_step,
                prepare=_no_aux, pack=_pack, rest=_rest, feedforward=True,
                c_source=Path(__file__).with_name("ffpd.c"),
-              st_source=Path(__file__).with_name("ffpd.st"))
+               st_source=Path(__file__).with_name("ffpd.st"))
 
 
 @dataclass(frozen=True, slots=True)

@@ -164,6 +164,8 @@ def _expand(lines: Sequence[str], *, systems: Mapping[str, System], gains: Seque
         if m:
             words = m.group(1).split()
             if words[0] == "if":
+                if len(words) < 3:
+                    raise ParameterError(f"incomplete condition {m.group(1)!r} in an ST port")
                 if words[1:2] == ["system"]:
                     cond = words[2] in systems
                 elif words[1:2] == ["gain"]:
@@ -176,6 +178,8 @@ def _expand(lines: Sequence[str], *, systems: Mapping[str, System], gains: Seque
                 else:
                     raise ParameterError(f"unknown condition {m.group(1)!r} in an ST port")
                 stack.append((cond, keep()))
+            elif words[0] in ("else", "end") and not stack:
+                raise ParameterError(f"an ST port's {words[0]!r} has no 'if'")
             elif words[0] == "else":
                 cond, outer = stack.pop()
                 stack.append((not cond, outer))
@@ -566,12 +570,15 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
 
 
 def _task_interval(ts: float) -> str:
-    """``ts`` as an IEC TIME literal (whole microseconds)."""
+    """``ts`` as an IEC TIME literal in milliseconds, with a fraction where needed (``T#1ms``,
+    ``T#1.5ms``): the unit ``us`` is edition 3 only, and MatIEC refuses it in a task's
+    interval; ``ts`` must be a whole number of microseconds."""
     us = round(ts * 1e6)
     if us < 1 or abs(us - ts * 1e6) > 1e-6 * max(1.0, ts * 1e6):
         raise ParameterError(f"sample time {ts!r} s is not a whole number of microseconds, "
                              f"which a task interval (TIME) needs")
-    return f"T#{us // 1000}ms" if us % 1000 == 0 else f"T#{us}us"
+    whole, frac = divmod(us, 1000)
+    return f"T#{whole}ms" if frac == 0 else f"T#{whole}.{frac:03d}".rstrip("0") + "ms"
 
 
 def _example(name: str, real: StReal, ts: float, what: str, feedforward: bool) -> str:

@@ -375,9 +375,10 @@ def partition_system(prefix: str, ints: IntArray, floats: FloatArray) -> Partiti
     ranges = tuple((float(f[fvo + 4 * k]), float(f[fvo + 4 * k + 1])) for k in range(n_in))
     fv = fvo + 4 * n_in
     default = float(f[fv + 2])
-    if math.isnan(default) and not all(clip):
+    if math.isnan(default):
         raise ParameterError(f"{prefix.lower()} system: its no-rule value is NaN, which "
-                             f"Structured Text cannot write; give a number (--no-rule-value)")
+                             f"Structured Text cannot write; give a number (--no-rule-value, "
+                             f"or a DEFAULT in the file)")
     n_terms = int(i[_H_NTERMS])
     return PartitionSystem(
         prefix=prefix, pi=i[int(i[_H_PART]):], pf=f[int(i[_H_PARTF]):], n_in=n_in,
@@ -832,11 +833,8 @@ def st_partition_eval(g: PartitionSystem, x1: str, x2: str, out: str, real: StRe
 def st_partition_consts(g: PartitionSystem, real: StReal) -> list[str]:
     """The ranges, clip limits and no-rule value of a partition system, as constants."""
     lit = st_literal
-    default = g.default
+    default = g.default  # finite: partition_system refuses NaN
     note = ""
-    if math.isnan(default):
-        default = 0.0
-        note = " (NaN in the system: written as 0.0, never used: its rules provably fire)"
     out = []
     for k, (lo, hi) in enumerate(g.ranges):
         if g.clip[k]:
