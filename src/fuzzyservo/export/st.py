@@ -561,7 +561,8 @@ def emit_st(kind: ControllerKind, gains: Mapping[str, float], controller: Any, *
         "END_FUNCTION_BLOCK",
         "",
     ])
-    example = _example(name, real, ts, f"controller {kind.name}, {title}", law.feedforward)
+    example = _example(name, real, ts, f"controller {kind.name}, {title}", law.feedforward,
+                       info[3:10])
     return STController(name=name, kind=kind.name, block=block, example=example, real=real,
                         gain_names=tuple(upper_gains), gains=values, ts=ts,
                         self_tuning=has_alpha, feedforward=bool(law.feedforward),
@@ -581,7 +582,8 @@ def _task_interval(ts: float) -> str:
     return f"T#{whole}ms" if frac == 0 else f"T#{whole}.{frac:03d}".rstrip("0") + "ms"
 
 
-def _example(name: str, real: StReal, ts: float, what: str, feedforward: bool) -> str:
+def _example(name: str, real: StReal, ts: float, what: str, feedforward: bool,
+             record: Sequence[str] = ()) -> str:
     zero = st_literal(0.0, real)
     ff = ("the reference's velocity and acceleration from the motion profile (this law uses "
           "them)" if feedforward else "0 (this law ignores them)")
@@ -590,6 +592,8 @@ def _example(name: str, real: StReal, ts: float, what: str, feedforward: bool) -
         "and a CONFIGURATION with that cyclic task, as a PLC project starts from them. Map the",
         "variables marked I/O to the axis (docs/export-st.md).",
         "Compile it together with the block: iec2c needs both in one file or as a library.",
+        "",
+        *record,
     ]
     interval = _task_interval(ts)
     return "\n".join([
