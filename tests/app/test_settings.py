@@ -237,8 +237,9 @@ def test_the_structured_text_download_is_what_its_command_writes(
 
 def test_a_general_fuzzy_system_is_refused_by_the_structured_text_download_as_by_the_command(
         tmp_path: Path) -> None:
-    """Structured Text takes the paper's uniform-grid systems only: a system file of another
-    form makes the download show the command's one line, and no file."""
+    """Structured Text takes uniform-grid systems and rule tables over fuzzy partitions: a
+    system with a smooth term (a Gaussian) makes the download show the command's one line,
+    and no file."""
     from fuzzyservo.app.page import ServoPage
 
     paper = Path(__file__).resolve().parents[2] / "src/fuzzyservo/data/systems/paper-du.fis"
@@ -251,7 +252,7 @@ def test_a_general_fuzzy_system_is_refused_by_the_structured_text_download_as_by
     page.submit()
     assert page._st_file() is None
     status, _, err = printed([*page._export_args("st", str(tmp_path / "fpi-st"))])
-    assert status == 2 and "general fuzzy system" in err
+    assert status == 2 and "general evaluator's" in err and "export c" in err
     assert page.w_error.visible and page.w_error.object == html.escape(err.strip())
     assert not (tmp_path / "fpi-st").exists()
     # the other downloads still work: C takes any system
