@@ -176,7 +176,7 @@ def _zoh(a: np.ndarray, b: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray
 
 @pytest.mark.parametrize(("gains", "options", "message"), [
     ({"k_o": 0.0}, {}, "gain k_o must be finite and > 0, got 0.0"),
-    ({"omega_0": math.inf}, {}, "gain omega_0 must be finite and >= 0, got inf"),
+    ({"omega_0": math.inf}, {}, "gain omega_0 must be finite and > 0, got inf"),
     ({"phi": -1.0}, {}, "gain phi must be finite and >= 0, got -1.0"),
     ({}, {"integral_action": "yes"}, "integral_action must be one of ['off', 'on'], got 'yes'"),
     ({}, {"reference_jerk": "exact"},
