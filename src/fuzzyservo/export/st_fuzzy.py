@@ -138,7 +138,7 @@ def st_tables(g: GridSystem, real: StReal) -> list[str]:
                 f"cannot write, and its rule table has empty cells; give a number "
                 f"(--no-rule-value)")
         lims[7] = 0.0
-        note = " (no-rule value NaN written as 0.0: never used, the table is complete)"
+        note = " (NaN in the system, written as 0.0: never used, the table is complete)"
     vals = ", ".join(st_literal(v, real, f"{g.prefix}_LIMS[{i}]") for i, v in enumerate(lims))
     return [
         f"(* {g.prefix.lower()} system: {g.n2} x {g.n1} rule table on uniform triangles; "
