@@ -832,16 +832,15 @@ def st_partition_eval(g: PartitionSystem, x1: str, x2: str, out: str, real: StRe
 
 def st_partition_consts(g: PartitionSystem, real: StReal) -> list[str]:
     """The ranges, clip limits and no-rule value of a partition system, as constants."""
-    lit = st_literal
-    default = g.default  # finite: partition_system refuses NaN
-    note = ""
     out = []
     for k, (lo, hi) in enumerate(g.ranges):
         if g.clip[k]:
-            out.append(f"{g.prefix}_XLO{k} : {real} := {lit(lo, real)}; "
-                       f"{g.prefix}_XHI{k} : {real} := {lit(hi, real)}; (* input {k + 1} range *)")
+            out.append(f"{g.prefix}_XLO{k} : {real} := {st_literal(lo, real)}; "
+                       f"{g.prefix}_XHI{k} : {real} := {st_literal(hi, real)}; "
+                       f"(* input {k + 1} range *)")
     if g.out_clip:
-        out.append(f"{g.prefix}_YLO : {real} := {lit(g.out_range[0], real)}; "
-                   f"{g.prefix}_YHI : {real} := {lit(g.out_range[1], real)}; (* output range *)")
-    out.append(f"{g.prefix}_DEFAULT : {real} := {lit(default, real)}; (* no-rule value{note} *)")
+        out.append(f"{g.prefix}_YLO : {real} := {st_literal(g.out_range[0], real)}; "
+                   f"{g.prefix}_YHI : {real} := {st_literal(g.out_range[1], real)}; "
+                   f"(* output range *)")
+    out.append(f"{g.prefix}_DEFAULT : {real} := {st_literal(g.default, real)}; (* no-rule value *)")
     return out
