@@ -32,13 +32,17 @@ ALLOWED: dict[str, set[str]] = {
               "analysis", "files", "plots", "sweep"},
     "sweep": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "run",
               "analysis", "files", "plots"},
+    # identification of a user's axis from measured data: fits through the registry's plants
+    # and the compiled loops; its figures from plots
+    "identify": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "run",
+                 "analysis", "files", "plots"},
     # the browser page is a front end beside the command line, built on the library: it
     # imports neither the commands nor the CLI (the `app` command starts it)
     "app": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "run",
             "analysis", "files", "plots", "export"},
     # the commands: the command line's handlers, over everything below them
     "commands": {"fuzzy", "formats", "plant", "control", "sim", "paper", "registry", "run",
-                 "analysis", "files", "plots", "export", "study", "sweep", "app"},
+                 "analysis", "files", "plots", "export", "study", "sweep", "app", "identify"},
     "cli": {"commands"},
     "_entry": {"cli"},  # the entry point: catches Ctrl-C while the CLI is imported
     "__main__": {"_entry"},

@@ -1,0 +1,34 @@
+"""Identify the servo model of a user's own axis from measured data (docs/identify.md).
+
+:func:`identify` fits fields of the parameter set (``load.mass``, ``fluid.oil_bulk_modulus``,
+``valve.omega_v``, ...) so that a plant of the registry, driven as the axis was (by the logged
+command, or by a controller and the logged reference), reproduces the logged position and
+chamber pressures; it reports standard errors, correlations, bootstrap intervals and warns
+when the data cannot identify a parameter, naming the experiment that would.
+"""
+
+from .advice import CORRELATION_LIMIT, identifiability_warnings, remedy
+from .fit import (
+    CHANNELS,
+    DEFAULT_STARTS,
+    FitSettings,
+    Identification,
+    ModelRunner,
+    default_bounds,
+    identify,
+    noise_level,
+)
+
+__all__ = [
+    "CHANNELS",
+    "CORRELATION_LIMIT",
+    "DEFAULT_STARTS",
+    "FitSettings",
+    "Identification",
+    "ModelRunner",
+    "default_bounds",
+    "identifiability_warnings",
+    "identify",
+    "noise_level",
+    "remedy",
+]

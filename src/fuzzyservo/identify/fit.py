@@ -1,0 +1,700 @@
+"""Fit fields of the servo's parameter set to a logged experiment (weighted least squares).
+
+The model is any plant of the registry (``nonlinear``, ``small-signal``, ``linear``), built
+from the parameter set with the fitted fields replaced, at rest at the logged start position,
+and driven as the axis was: by the logged command (open loop) or by a controller and the logged
+reference (closed loop). Its position, and its chamber pressures where the data have them and
+the model has them, are compared with the logged ones sample by sample. The simulations are
+the compiled loops of :mod:`fuzzyservo.sim` (one run: a few milliseconds for 10 s at 1 kHz);
+the Jacobian is taken by central finite differences, its 2p runs at once on a pool of threads
+(the compiled loops release the GIL).
+
+The fit (docs/identify.md):
+
+1. Coordinates: a field whose lower bound is > 0 is fitted as log(value); others (a friction
+   that may be 0) linearly, scaled by their upper bound.
+2. Weights: each channel c is divided by its noise level sigma_c, first estimated from the data
+   (the median absolute second difference: a smooth motion sampled fast has second differences
+   far below the noise), then, after a first fit, by the channel's residual RMS
+   (iteratively re-weighted least squares, so a channel the model cannot follow as well does
+   not dominate).
+3. Starts: the parameter set's values, then ``starts - 1`` seeded draws inside the bounds
+   (log-uniform); scipy's bounded trust-region reflective least squares from each, the best
+   kept and the spread of the others reported.
+4. Uncertainty: the covariance s^2 (J^T J)^-1 at the optimum (s^2 the reduced chi-square),
+   standard errors mapped back to SI by the delta method, the correlation matrix; with
+   ``bootstrap = N``, percentile intervals from N refits to the fitted traces plus moving
+   blocks of the residuals (which keeps their correlation in time).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .._typing import FloatArray
+from ..control.command import CommandSchedule
+from ..errors import FuzzyServoError, InputError, ParameterError
+from ..plant import ServoParams, linearize, with_overrides
+from ..plant.params import allowed_names
+from ..registry import build_plant, plant_kind
+from ..sim.closed_loop import run_loop
+from ..sim.references import reference_rates
+
+__all__ = [
+    "CHANNELS",
+    "DEFAULT_STARTS",
+    "FitSettings",
+    "Identification",
+    "ModelRunner",
+    "default_bounds",
+    "identify",
+    "noise_level",
+]
+
+#: The signals compared, in order, with their units.
+CHANNELS: dict[str, str] = {"y": "m", "p_f": "Pa", "p_n": "Pa"}
+
+#: Starts of the local search by default: the parameter set's values and two seeded draws.
+DEFAULT_STARTS = 3
+
+#: Relative step of the central differences in the fitted coordinates (log: 1e-5 relative).
+_FD_STEP = 1.0e-5
+
+#: Residual of a sample when the model cannot be run (invalid parameters, divergence): large,
+#: finite, so the trust region shrinks away from it.
+_FAILED = 1.0e3
+
+#: Fewest hydraulic periods (2 pi / omega_0 of the parameter set) the excited part must last.
+MIN_PERIODS = 3.0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FitSettings:
+    """How the least-squares search runs.
+
+    Parameters
+    ----------
+    starts : int
+        Local searches: the set's values, then seeded draws inside the bounds (>= 1).
+    seed : int
+        Seed of the starts and of the bootstrap's resampling.
+    bootstrap : int
+        Refits to resampled residual blocks for percentile intervals (0: none).
+    block : int or None
+        Length of the bootstrap's residual blocks [samples]; None: two hydraulic periods.
+    level : float
+        Coverage of the bootstrap's percentile intervals, in (0, 1) [1].
+    max_nfev : int
+        Most iterations (function evaluations of scipy's least_squares) per search.
+    reweight : bool
+        Re-weight the channels by their residual RMS and refit (step 2 of the module's list).
+    workers : int or None
+        Threads that run the model; None: the processor count.
+    """
+
+    starts: int = DEFAULT_STARTS
+    seed: int = 0
+    bootstrap: int = 0
+    block: int | None = None
+    level: float = 0.95
+    max_nfev: int = 60
+    reweight: bool = True
+    workers: int | None = None
+
+    def __post_init__(self) -> None:
+        for name, low in (("starts", 1), ("bootstrap", 0), ("max_nfev", 2)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ParameterError(f"{name} must be an integer >= {low}, got {v!r}")
+        if self.block is not None and (isinstance(self.block, bool)
+                                       or not isinstance(self.block, int) or self.block < 1):
+            raise ParameterError(f"block must be an integer >= 1 sample, got {self.block!r}")
+        if not (isinstance(self.level, float | int) and 0.0 < self.level < 1.0):
+            raise ParameterError(f"level must be in (0, 1), got {self.level!r}")
+        if self.workers is not None and (isinstance(self.workers, bool)
+                                         or not isinstance(self.workers, int)
+                                         or self.workers < 1):
+            raise ParameterError(f"workers must be an integer >= 1, got {self.workers!r}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True, eq=False)
+class Identification:
+    """The result of :func:`identify`: estimates, their uncertainty and the traces."""
+
+    names: tuple[str, ...]  #: fitted fields, ``group.field``
+    units: tuple[str, ...]  #: their units (from the parameter classes' docs)
+    initial: FloatArray  #: the parameter set's values of the fields [SI]
+    estimate: FloatArray  #: the estimates [SI]
+    std_error: FloatArray  #: standard errors (delta method) [SI]
+    correlation: FloatArray  #: correlation matrix of the estimates (p, p) [1]
+    bounds: FloatArray  #: (p, 2) bounds of the search [SI]
+    interval: FloatArray | None  #: (p, 2) bootstrap percentile interval [SI], or None
+    level: float  #: coverage of ``interval`` [1]
+    bootstrap: FloatArray | None  #: (N, p) bootstrap estimates [SI], or None
+    params: ServoParams  #: the identified parameter set
+    base: ServoParams  #: the parameter set the fit started from
+    plant: str  #: the plant model fitted
+    mode: str  #: "open loop" or "closed loop"
+    position: float  #: start position of the model [m]
+    t: FloatArray  #: sample times [s]
+    channels: tuple[str, ...]  #: signals compared (``CHANNELS`` names)
+    measured: dict[str, FloatArray]  #: each channel's logged trace [SI]
+    fitted: dict[str, FloatArray]  #: each channel's trace of the identified model [SI]
+    start_fit: dict[str, FloatArray]  #: each channel's trace of the starting model [SI]
+    used: FloatArray  #: (n,) bool, samples that enter the fit (not flagged)
+    sigma: dict[str, float]  #: each channel's weight 1/sigma: sigma [SI]
+    residual_rms: dict[str, float]  #: each channel's residual RMS over the used samples [SI]
+    chi2: float  #: reduced chi-square of the final weighted fit [1]
+    start_costs: FloatArray  #: final cost of each start (weighted sum of squares / 2)
+    start_spread: float  #: widest relative distance from the best of starts at its cost [1]
+    n_runs: int  #: model runs made (fit, Jacobians, bootstrap)
+    warnings: tuple[str, ...]  #: identifiability warnings, one line each
+    notes: tuple[str, ...] = field(default=())  #: what the fit did, one line each
+
+    def value(self, name: str) -> float:
+        """The estimate of ``name`` [SI]."""
+        if name not in self.names:
+            raise ParameterError(f"{name!r} was not fitted; fitted: {', '.join(self.names)}")
+        return float(self.estimate[self.names.index(name)])
+
+    def error(self, name: str) -> float:
+        """The standard error of ``name`` [SI]."""
+        if name not in self.names:
+            raise ParameterError(f"{name!r} was not fitted; fitted: {', '.join(self.names)}")
+        return float(self.std_error[self.names.index(name)])
+
+
+def _unit_of(name: str) -> str:
+    """The unit in square brackets at the end of a field's doc comment, e.g. ``kg``."""
+    import inspect
+
+    from ..plant.params import GROUPS
+
+    group, fname = name.split(".", 1)
+    src = inspect.getsource(GROUPS[group])
+    for line in src.splitlines():
+        s = line.strip()
+        if s.startswith(f"{fname}:") and "[" in s:
+            return s[s.rindex("[") + 1:s.rindex("]")]
+    return "SI"
+
+
+def noise_level(x: FloatArray) -> float:
+    """A robust estimate of the white measurement noise of a trace sampled fast [its unit]:
+    1.4826 median|Δ²x| / sqrt(6) (the second difference of white noise of variance σ² has
+    variance 6σ²; a smooth motion's second differences are far smaller)."""
+    if x.size < 5:
+        return 0.0
+    d2 = np.diff(x, 2)
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+
+
+def check_names(names: Sequence[str]) -> tuple[str, ...]:
+    """The fitted field names, checked: known, each once, at least one."""
+    allowed = allowed_names()
+    out = tuple(n.strip() for n in names)
+    if not out:
+        raise ParameterError("--fit names no parameter; give one or more group.field names, "
+                             "e.g. load.mass,fluid.oil_bulk_modulus")
+    for n in out:
+        if n not in allowed:
+            raise ParameterError(f"cannot fit unknown parameter {n!r}; allowed: "
+                                 f"{', '.join(allowed)}")
+        if out.count(n) > 1:
+            raise ParameterError(f"--fit names {n!r} twice; name each parameter once")
+    return out
+
+
+def default_bounds(name: str, value: float) -> tuple[float, float]:
+    """The search interval of a field with no ``--bounds``: [value/10, 10 value] [SI].
+
+    Raises
+    ------
+    ParameterError
+        When the set's value is 0 or negative (no scale to search around: give bounds).
+    """
+    if not (math.isfinite(value) and value > 0.0):
+        raise ParameterError(f"{name} is {value!r} in the parameter set, so it has no default "
+                             f"search interval; give one with --bounds {name}=LO:HI")
+    return value / 10.0, value * 10.0
+
+
+class ModelRunner:
+    """The model of one experiment: parameter vectors in, channel traces out.
+
+    Parameters
+    ----------
+    measurement : Measurement
+        The logged experiment (:func:`fuzzyservo.identify.read_measurement`).
+    plant : str
+        Registered plant name.
+    base : ServoParams
+        The parameter set whose ``names`` fields are replaced.
+    names : sequence of str
+        Fitted fields.
+    controller : LawController or None
+        None: open loop (driven by the logged command ``u``); else closed loop, the
+        controller driven by the logged reference ``r``.
+    substep : float
+        RK4 step bound of the nonlinear plant [s].
+    command_offset : {"rest", "none"}
+        Open loop: ``rest`` drives the model with u - u_rest + u_hold (the logged command's
+        value at rest replaced by the model's own holding command, so a valve's null offset
+        does not read as a drift); ``none``: the logged command as it is.
+    workers : int or None
+        Threads running the model.
+    """
+
+    def __init__(self, measurement: Any, plant: str, base: ServoParams, names: Sequence[str],
+                 *, controller: Any = None, substep: float = 5.0e-4,
+                 command_offset: str = "rest", workers: int | None = None) -> None:
+        plant_kind(plant)
+        if command_offset not in ("rest", "none"):
+            raise ParameterError(f"command_offset must be 'rest' or 'none', got "
+                                 f"{command_offset!r}")
+        self.m = measurement
+        self.plant = plant
+        self.base = base
+        self.names = tuple(names)
+        self.controller = controller
+        self.substep = float(substep)
+        self.command_offset = command_offset
+        self.t = np.ascontiguousarray(measurement.t, dtype=np.float64)
+        self.dt = float(measurement.dt)
+        rest = max(1, int(getattr(measurement, "rest", 1)))
+        self.position = float(np.mean(measurement.y[:rest]))
+        stroke = base.cylinder.stroke
+        if not 0.0 < self.position < stroke:
+            raise InputError(
+                f"the logged position at rest, {self.position:.6g} m, is outside the stroke "
+                f"(0, {stroke:g}) m of the model: positions are measured from the retracted "
+                f"end; give the offset (--position-offset M)")
+        if controller is None:
+            if measurement.u is None:
+                raise InputError("open-loop identification needs the logged command (a column "
+                                 "u); for closed-loop data name the controller (--controller, "
+                                 "--gains) and log the reference r")
+            self.u_rest = float(np.mean(measurement.u[:rest]))
+        else:
+            if measurement.r is None:
+                raise InputError("closed-loop identification needs the logged reference (a "
+                                 "column r)")
+            if abs(float(controller.dt) - self.dt) > 1e-9 * self.dt:
+                raise ParameterError(f"the controller's sample time {controller.dt!r} s differs "
+                                     f"from the data's {self.dt!r} s")
+            self.u_rest = 0.0
+            r = np.ascontiguousarray(measurement.r, dtype=np.float64)
+            self.rates = reference_rates(r, self.t)
+        self.workers = workers or max(1, os.cpu_count() or 1)
+        self.n_runs = 0
+        self._pool: ThreadPoolExecutor | None = None
+
+    def params_at(self, theta: FloatArray) -> ServoParams:
+        """The parameter set with the fitted fields at ``theta`` [SI] (may raise
+        ParameterError)."""
+        return with_overrides(self.base, {n: float(v) for n, v in
+                                          zip(self.names, theta, strict=True)})
+
+    def channels_of(self) -> tuple[str, ...]:
+        """The signals this model has among the ones logged."""
+        out = ["y"]
+        has_p = self.plant != "linear"
+        for c in ("p_f", "p_n"):
+            if has_p and getattr(self.m, c, None) is not None:
+                out.append(c)
+        return tuple(out)
+
+    def run(self, theta: FloatArray) -> dict[str, FloatArray] | None:
+        """The traces of the model at ``theta`` [SI], or None when it cannot be run (invalid
+        parameters, no equilibrium at the start position, divergence)."""
+        try:
+            params = self.params_at(theta)
+            plant = build_plant(self.plant, params, self.position, substep=self.substep)
+            delay = params.delay.transport_delay
+            if self.controller is None:
+                u = np.asarray(self.m.u, dtype=np.float64)
+                if self.command_offset == "rest":
+                    u = u - self.u_rest + plant.u0
+                sched = np.clip(u, -1.0, 1.0)
+                raw = run_loop(CommandSchedule(dt=self.dt), plant, np.ascontiguousarray(sched),
+                               delay=delay, disturbance=None, noise=np.empty(0), t=self.t,
+                               what="open loop")
+            else:
+                raw = run_loop(self.controller, plant,
+                               np.ascontiguousarray(self.m.r, dtype=np.float64), delay=delay,
+                               disturbance=None, noise=np.empty(0), t=self.t,
+                               rates=self.rates)
+        except (FuzzyServoError, ValueError, ArithmeticError):
+            return None
+        finally:
+            self.n_runs += 1
+        names = plant.state_names
+        out = {"y": raw.y}
+        for c in ("p_f", "p_n"):
+            if c in names:
+                out[c] = raw.x[:, names.index(c)]
+        if not all(np.all(np.isfinite(v)) for v in out.values()):
+            return None
+        return out
+
+    def run_many(self, thetas: Sequence[FloatArray]) -> list[dict[str, FloatArray] | None]:
+        """:meth:`run` of each vector, on the thread pool."""
+        if len(thetas) == 1 or self.workers == 1:
+            return [self.run(th) for th in thetas]
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=self.workers)
+        return list(self._pool.map(self.run, thetas))
+
+    def close(self) -> None:
+        """Stop the thread pool."""
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+
+class _Problem:
+    """Weighted residuals in the fitted coordinates z, with a batched Jacobian."""
+
+    def __init__(self, runner: ModelRunner, lo: FloatArray, hi: FloatArray,
+                 channels: tuple[str, ...], data: dict[str, FloatArray], used: FloatArray,
+                 sigma: dict[str, float]) -> None:
+        self.runner = runner
+        self.log = lo > 0.0
+        self.scale = np.where(self.log, 1.0, np.maximum(np.abs(hi), 1e-300))
+        self.channels = channels
+        self.data = data
+        self.used = used
+        self.sigma = sigma
+        self._cache: tuple[bytes, FloatArray] | None = None
+        self.zlo = self.to_z(lo)
+        self.zhi = self.to_z(hi)
+
+    def to_z(self, theta: FloatArray) -> FloatArray:
+        with np.errstate(divide="ignore"):
+            return np.where(self.log, np.log(np.maximum(theta, 1e-300)), theta / self.scale)
+
+    def to_theta(self, z: FloatArray) -> FloatArray:
+        return np.where(self.log, np.exp(z), z * self.scale)
+
+    def dtheta_dz(self, z: FloatArray) -> FloatArray:
+        return np.where(self.log, np.exp(z), self.scale)
+
+    def weighted(self, traces: dict[str, FloatArray] | None) -> FloatArray:
+        m = int(np.count_nonzero(self.used))
+        if traces is None:
+            return np.full(m * len(self.channels), _FAILED)
+        parts = [(traces[c][self.used] - self.data[c][self.used]) / self.sigma[c]
+                 for c in self.channels]
+        res = np.concatenate(parts)
+        if not np.all(np.abs(res) < _FAILED * 1e3):  # a run gone far off: as a failure
+            return np.full(res.size, _FAILED)
+        return res
+
+    def residuals(self, z: FloatArray) -> FloatArray:
+        key = np.asarray(z, dtype=np.float64).tobytes()
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        res = self.weighted(self.runner.run(self.to_theta(z)))
+        self._cache = (key, res)
+        return res
+
+    def jacobian(self, z: FloatArray) -> FloatArray:
+        z = np.asarray(z, dtype=np.float64)
+        p = z.size
+        h = np.full(p, _FD_STEP)
+        zs: list[FloatArray] = []
+        for i in range(p):
+            for sgn in (1.0, -1.0):
+                zz = z.copy()
+                zz[i] += sgn * h[i]
+                zs.append(zz)
+        runs = self.runner.run_many([self.to_theta(zz) for zz in zs])
+        f0 = self.residuals(z)
+        jac = np.empty((f0.size, p))
+        for i in range(p):
+            a, b = runs[2 * i], runs[2 * i + 1]
+            if a is not None and b is not None:
+                jac[:, i] = (self.weighted(a) - self.weighted(b)) / (2.0 * h[i])
+            elif a is not None:
+                jac[:, i] = (self.weighted(a) - f0) / h[i]
+            elif b is not None:
+                jac[:, i] = (f0 - self.weighted(b)) / h[i]
+            else:
+                jac[:, i] = 0.0
+        return jac
+
+
+def _solve(problem: _Problem, z0: FloatArray, max_nfev: int) -> tuple[FloatArray, float]:
+    from scipy.optimize import least_squares
+
+    z0 = np.clip(z0, problem.zlo, problem.zhi)
+    sol = least_squares(problem.residuals, z0, jac=problem.jacobian,
+                        bounds=(problem.zlo, problem.zhi), method="trf", x_scale=1.0,
+                        ftol=1e-10, xtol=1e-10, gtol=1e-10, max_nfev=max_nfev)
+    return np.asarray(sol.x, dtype=np.float64), float(sol.cost)
+
+
+def _covariance(problem: _Problem, z: FloatArray) -> tuple[FloatArray, float]:
+    """Covariance of z, s² (JᵀJ)⁻¹ (pseudo-inverse), and the reduced chi-square s²."""
+    f = problem.residuals(z)
+    jac = problem.jacobian(z)
+    m, p = jac.shape
+    dof = max(1, m - p)
+    s2 = float(f @ f) / dof
+    jtj = jac.T @ jac
+    cov = np.linalg.pinv(jtj, rcond=1e-12, hermitian=True) * s2
+    return cov, s2
+
+
+def identify(
+    measurement: Any,
+    *,
+    plant: str,
+    params: ServoParams,
+    fit: Sequence[str],
+    bounds: Mapping[str, tuple[float, float]] | None = None,
+    controller: Any = None,
+    substep: float = 5.0e-4,
+    command_offset: str = "rest",
+    channels: Sequence[str] | None = None,
+    settings: FitSettings | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> Identification:
+    """Fit the named fields of ``params`` to a logged experiment.
+
+    Parameters
+    ----------
+    measurement : Measurement
+        The experiment (:func:`fuzzyservo.identify.read_measurement` or
+        :func:`~fuzzyservo.identify.measurement_from_arrays`): position ``y`` [m] from the
+        retracted end, command ``u`` [-] (open loop) or reference ``r`` [m] (closed loop),
+        chamber pressures ``p_f``, ``p_n`` [Pa] when logged.
+    plant : str
+        The model: ``nonlinear``, ``small-signal`` or ``linear`` (registry name).
+    params : ServoParams
+        The parameter set: the starting values of the fitted fields and every other field.
+    fit : sequence of str
+        Fields to fit, ``group.field`` (``load.mass``, ``fluid.oil_bulk_modulus``, ...).
+    bounds : mapping, optional
+        ``{name: (lo, hi)}`` search interval of a field [SI]; default
+        :func:`default_bounds` (a decade either side of the set's value).
+    controller : LawController, optional
+        Closed loop: the controller that ran the axis (its ``dt`` the data's sample time).
+    substep : float
+        RK4 step bound of the nonlinear plant [s].
+    command_offset : {"rest", "none"}
+        See :class:`ModelRunner`.
+    channels : sequence of str, optional
+        Signals to compare (``y``, ``p_f``, ``p_n``); default every one logged that the model
+        has.
+    settings : FitSettings, optional
+        Starts, seed, bootstrap, threads.
+    progress : callable, optional
+        ``progress(stage, done, total)``: called as starts and bootstrap refits finish.
+
+    Returns
+    -------
+    Identification
+
+    Raises
+    ------
+    ParameterError
+        Unknown or repeated names, bad bounds, a start value outside its bounds, settings.
+    InputError
+        Data that cannot identify anything: no command or reference, a start position
+        outside the stroke, too short for the model's dynamics, or a model that cannot be
+        run at the starting values.
+    """
+    cfg = settings or FitSettings()
+    names = check_names(fit)
+    runner = ModelRunner(measurement, plant, params, names, controller=controller,
+                         substep=substep, command_offset=command_offset, workers=cfg.workers)
+    try:
+        return _identify(measurement, runner, params, names, bounds or {}, channels, cfg,
+                         progress)
+    finally:
+        runner.close()
+
+
+def _bounds(names: tuple[str, ...], theta0: FloatArray,
+            given: Mapping[str, tuple[float, float]]) -> tuple[FloatArray, FloatArray]:
+    for key in given:
+        if key not in names:
+            raise ParameterError(f"--bounds names {key!r}, which is not fitted; fitted: "
+                                 f"{', '.join(names)}")
+    lo = np.empty(len(names))
+    hi = np.empty(len(names))
+    for i, n in enumerate(names):
+        if n in given:
+            a, b = (float(v) for v in given[n])
+            if not (math.isfinite(a) and math.isfinite(b) and a < b):
+                raise ParameterError(f"bounds of {n} must be finite with LO < HI, got "
+                                     f"{a!r}:{b!r}")
+        else:
+            a, b = default_bounds(n, float(theta0[i]))
+        lo[i], hi[i] = a, b
+    return lo, hi
+
+
+def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str, ...],
+              given_bounds: Mapping[str, tuple[float, float]],
+              channels: Sequence[str] | None, cfg: FitSettings,
+              progress: Callable[[str, int, int], None] | None) -> Identification:
+    flat = {n: float(getattr(getattr(params, n.split(".")[0]), n.split(".")[1])) for n in names}
+    theta0 = np.array([flat[n] for n in names])
+    lo, hi = _bounds(names, theta0, given_bounds)
+    have = runner.channels_of()
+    if channels is None:
+        chans = have
+    else:
+        chans = tuple(channels)
+        for c in chans:
+            if c not in have:
+                raise InputError(f"cannot fit channel {c!r}: the data and the {runner.plant} "
+                                 f"model have {', '.join(have)}")
+    notes: list[str] = []
+    if runner.plant == "linear" and any(getattr(m, c, None) is not None for c in ("p_f", "p_n")):
+        notes.append("the linear plant (eq. 8) has no chamber pressures: fitted on the position "
+                     "only (use --plant small-signal or nonlinear to use them)")
+    lin = linearize(params, runner.position)
+    period = 2.0 * math.pi / lin.omega_0
+    rest = max(1, int(getattr(m, "rest", 1)))
+    excited = float(m.t[-1] - m.t[min(rest, m.t.size - 1)])
+    if excited < MIN_PERIODS * period:
+        raise InputError(
+            f"the data are too short for the fitted dynamics: {excited:.4g} s of excitation, "
+            f"at least {MIN_PERIODS:g} hydraulic periods (2 pi/omega_0 = {period:.4g} s at "
+            f"the start position) = {MIN_PERIODS * period:.4g} s needed")
+    data = {c: np.ascontiguousarray(getattr(m, c), dtype=np.float64) for c in chans}
+    flagged = getattr(m, "flagged", None)
+    used = np.ones(m.t.size, dtype=bool) if flagged is None else ~np.asarray(flagged, bool)
+    sigma: dict[str, float] = {}
+    for c in chans:
+        rng_c = float(np.ptp(data[c][used])) or 1.0
+        sigma[c] = max(noise_level(data[c][used]), 1e-9 * rng_c)
+    theta_start = np.clip(theta0, lo, hi)
+    start_traces = runner.run(theta_start)
+    if start_traces is None:
+        shown = ", ".join(f"{n} = {v:.6g}" for n, v in zip(names, theta_start, strict=True))
+        raise InputError(f"the {runner.plant} model cannot be run with the starting values "
+                         f"({shown}): "
+                         f"no equilibrium at {runner.position:.6g} m or a divergence; check "
+                         f"the parameter set and the data's position")
+    prob = _Problem(runner, lo, hi, chans, data, used, sigma)
+    rng = np.random.default_rng([cfg.seed, 27])
+    z_starts = [prob.to_z(theta_start)]
+    for _ in range(cfg.starts - 1):
+        z_starts.append(prob.zlo + rng.random(len(names)) * (prob.zhi - prob.zlo))
+    results = []
+    for i, z0 in enumerate(z_starts):
+        results.append(_solve(prob, z0, cfg.max_nfev))
+        if progress is not None:
+            progress("starts", i + 1, len(z_starts))
+    costs = np.array([c for _, c in results])
+    best = int(np.argmin(costs))
+    z_best = results[best][0]
+    th_best = prob.to_theta(z_best)
+    spread = 0.0  # over the starts that reached the best cost (to 1e-3): how flat it is
+    worse = 0
+    for z, cost_i in results:
+        if cost_i > costs[best] * (1.0 + 1e-3) + 1e-300:
+            worse += 1
+            continue
+        spread = max(spread, float(np.max(np.abs(prob.to_theta(z) - th_best)
+                                          / np.maximum(np.abs(th_best), 1e-300))))
+    if worse:
+        notes.append(f"{worse} of {len(results)} starts ended in a worse local minimum; the "
+                     f"best was kept")
+    if cfg.reweight:
+        fitted = runner.run(th_best)
+        if fitted is not None:
+            for c in chans:
+                res = fitted[c][used] - data[c][used]
+                sigma[c] = max(float(np.sqrt(np.mean(res**2))), 1e-12 * sigma[c], 1e-300)
+            prob = _Problem(runner, lo, hi, chans, data, used, sigma)
+            z_best, _ = _solve(prob, z_best, cfg.max_nfev)
+            th_best = prob.to_theta(z_best)
+    cov_z, s2 = _covariance(prob, z_best)
+    d = prob.dtheta_dz(z_best)
+    cov = cov_z * np.outer(d, d)
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(se, se)
+    corr = np.where(np.isfinite(corr), corr, 0.0)
+    np.fill_diagonal(corr, 1.0)
+    fitted = runner.run(th_best)
+    if fitted is None:  # the optimum was run above; a failure here would be a bug
+        raise InputError("the identified model cannot be run")
+    at_bound = [n for n, v, a, b in zip(names, th_best, lo, hi, strict=True)
+                if v <= a * (1 + 1e-6) or v >= b * (1 - 1e-6)]
+    for n in at_bound:
+        notes.append(f"{n} ended on a bound of its search interval: widen --bounds {n}=LO:HI "
+                     f"or check the model")
+    interval = None
+    boot = None
+    if cfg.bootstrap > 0:
+        boot = _bootstrap(prob, runner, fitted, z_best, cfg, period, progress)
+        ok = np.all(np.isfinite(boot), axis=1)
+        a = (1.0 - cfg.level) / 2.0
+        interval = np.quantile(boot[ok], [a, 1.0 - a], axis=0).T if np.any(ok) else None
+        if not np.all(ok):
+            notes.append(f"{int(np.count_nonzero(~ok))} of {cfg.bootstrap} bootstrap refits "
+                         f"failed and were left out")
+    rms = {c: float(np.sqrt(np.mean((fitted[c][used] - data[c][used]) ** 2))) for c in chans}
+    from .advice import identifiability_warnings
+
+    warns = identifiability_warnings(names, th_best, se, corr, channels=chans,
+                                     omega_0=lin.omega_0, omega_v=params.valve.omega_v)
+    return Identification(
+        names=names, units=tuple(_unit_of(n) for n in names), initial=theta0,
+        estimate=th_best, std_error=se, correlation=corr, bounds=np.column_stack([lo, hi]),
+        interval=interval, level=float(cfg.level), bootstrap=boot,
+        params=runner.params_at(th_best), base=params, plant=runner.plant,
+        mode="open loop" if runner.controller is None else "closed loop",
+        position=runner.position, t=np.asarray(m.t, dtype=np.float64), channels=chans,
+        measured=data, fitted={c: fitted[c] for c in chans},
+        start_fit={c: start_traces[c] for c in chans}, used=used, sigma=dict(sigma),
+        residual_rms=rms, chi2=s2, start_costs=costs, start_spread=spread,
+        n_runs=runner.n_runs, warnings=tuple(warns), notes=tuple(notes))
+
+
+def _bootstrap(prob: _Problem, runner: ModelRunner, fitted: dict[str, FloatArray],
+               z_best: FloatArray, cfg: FitSettings, period: float,
+               progress: Callable[[str, int, int], None] | None) -> FloatArray:
+    """Refits to the fitted traces plus moving blocks of the residuals (the same blocks for
+    every channel), each from the estimate; replicate i draws from its own generator
+    (seed, i), so the result does not depend on the order the refits run in."""
+    used = prob.used
+    idx_used = np.flatnonzero(used)
+    m = idx_used.size
+    block = cfg.block or max(10, int(round(2.0 * period / runner.dt)))
+    block = min(block, m)
+    res = {c: prob.data[c] - fitted[c] for c in prob.channels}
+    out = np.full((cfg.bootstrap, z_best.size), np.nan)
+    for i in range(cfg.bootstrap):
+        g = np.random.default_rng([cfg.seed, 2700, i])
+        n_blocks = -(-m // block)
+        starts = g.integers(0, m - block + 1, size=n_blocks)
+        take = (starts[:, None] + np.arange(block)[None, :]).ravel()[:m]
+        data_b = {}
+        for c in prob.channels:
+            d = prob.data[c].copy()
+            d[idx_used] = fitted[c][idx_used] + res[c][idx_used][take]
+            data_b[c] = d
+        pb = _Problem(runner, prob.to_theta(prob.zlo), prob.to_theta(prob.zhi), prob.channels,
+                      data_b, used, prob.sigma)
+        try:
+            z, _ = _solve(pb, z_best, cfg.max_nfev)
+            out[i] = pb.to_theta(z)
+        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+            pass
+        if progress is not None:
+            progress("bootstrap", i + 1, cfg.bootstrap)
+    return out
