@@ -15,6 +15,7 @@ COMMANDS: dict[str, str] = {
     "metrics": "metrics",
     "tune": "tune",
     "linearize": "linearize",
+    "identify": "identify",
     "bode": "bode",
     "surface": "surface",
     "fis": "fis",
@@ -33,6 +34,8 @@ HELP: dict[str, str] = {
     "metrics": "step-response metrics of a run CSV",
     "tune": "tune a controller by step-response search",
     "linearize": "linearise the servo: omega_0, damping, gains, eigenvalues",
+    "identify": ("identify your axis's model from measured data: fitted parameters with "
+                 "uncertainty; an experiment to log"),
     "bode": "closed-loop frequency response: margins, bandwidth; analytic and measured",
     "surface": ("evaluate the paper's du or alpha fuzzy system, or a two-input "
                 "fuzzy-system file, on points or a grid"),

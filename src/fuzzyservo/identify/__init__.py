@@ -18,6 +18,7 @@ from .fit import (
     identify,
     noise_level,
 )
+from .record import record_document, render_axis_toml, write_axis_toml
 
 __all__ = [
     "CHANNELS",
@@ -30,5 +31,8 @@ __all__ = [
     "identifiability_warnings",
     "identify",
     "noise_level",
+    "record_document",
     "remedy",
+    "render_axis_toml",
+    "write_axis_toml",
 ]

@@ -42,7 +42,7 @@ from .._typing import FloatArray
 from ..control.command import CommandSchedule
 from ..errors import FuzzyServoError, InputError, ParameterError
 from ..plant import ServoParams, linearize, with_overrides
-from ..plant.params import allowed_names
+from ..plant.params import allowed_names, field_unit
 from ..registry import build_plant, plant_kind
 from ..sim.closed_loop import run_loop
 from ..sim.references import reference_rates
@@ -169,21 +169,6 @@ class Identification:
         if name not in self.names:
             raise ParameterError(f"{name!r} was not fitted; fitted: {', '.join(self.names)}")
         return float(self.std_error[self.names.index(name)])
-
-
-def _unit_of(name: str) -> str:
-    """The unit in square brackets at the end of a field's doc comment, e.g. ``kg``."""
-    import inspect
-
-    from ..plant.params import GROUPS
-
-    group, fname = name.split(".", 1)
-    src = inspect.getsource(GROUPS[group])
-    for line in src.splitlines():
-        s = line.strip()
-        if s.startswith(f"{fname}:") and "[" in s:
-            return s[s.rindex("[") + 1:s.rindex("]")]
-    return "SI"
 
 
 def noise_level(x: FloatArray) -> float:
@@ -466,6 +451,8 @@ def identify(
     channels: Sequence[str] | None = None,
     settings: FitSettings | None = None,
     progress: Callable[[str, int, int], None] | None = None,
+    resume: FloatArray | None = None,
+    checkpoint: Callable[[FloatArray], None] | None = None,
 ) -> Identification:
     """Fit the named fields of ``params`` to a logged experiment.
 
@@ -498,6 +485,13 @@ def identify(
         Starts, seed, bootstrap, threads.
     progress : callable, optional
         ``progress(stage, done, total)``: called as starts and bootstrap refits finish.
+    resume : array (k, p), optional
+        The first k bootstrap estimates of an interrupted run with the same data and
+        settings [SI]: they are kept and the bootstrap goes on from refit k (each refit draws
+        from its own generator, so the result is the uninterrupted run's, bit for bit).
+    checkpoint : callable, optional
+        ``checkpoint(done)`` with the bootstrap estimates so far (k, p), after each refit:
+        where the caller saves them for ``resume``.
 
     Returns
     -------
@@ -518,7 +512,7 @@ def identify(
                          substep=substep, command_offset=command_offset, workers=cfg.workers)
     try:
         return _identify(measurement, runner, params, names, bounds or {}, channels, cfg,
-                         progress)
+                         progress, resume, checkpoint)
     finally:
         runner.close()
 
@@ -546,7 +540,9 @@ def _bounds(names: tuple[str, ...], theta0: FloatArray,
 def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str, ...],
               given_bounds: Mapping[str, tuple[float, float]],
               channels: Sequence[str] | None, cfg: FitSettings,
-              progress: Callable[[str, int, int], None] | None) -> Identification:
+              progress: Callable[[str, int, int], None] | None,
+              resume: FloatArray | None = None,
+              checkpoint: Callable[[FloatArray], None] | None = None) -> Identification:
     flat = {n: float(getattr(getattr(params, n.split(".")[0]), n.split(".")[1])) for n in names}
     theta0 = np.array([flat[n] for n in names])
     lo, hi = _bounds(names, theta0, given_bounds)
@@ -640,7 +636,8 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
     interval = None
     boot = None
     if cfg.bootstrap > 0:
-        boot = _bootstrap(prob, runner, fitted, z_best, cfg, period, progress)
+        boot = _bootstrap(prob, runner, fitted, z_best, cfg, period, progress, resume,
+                          checkpoint)
         ok = np.all(np.isfinite(boot), axis=1)
         a = (1.0 - cfg.level) / 2.0
         interval = np.quantile(boot[ok], [a, 1.0 - a], axis=0).T if np.any(ok) else None
@@ -653,7 +650,7 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
     warns = identifiability_warnings(names, th_best, se, corr, channels=chans,
                                      omega_0=lin.omega_0, omega_v=params.valve.omega_v)
     return Identification(
-        names=names, units=tuple(_unit_of(n) for n in names), initial=theta0,
+        names=names, units=tuple(field_unit(n) for n in names), initial=theta0,
         estimate=th_best, std_error=se, correlation=corr, bounds=np.column_stack([lo, hi]),
         interval=interval, level=float(cfg.level), bootstrap=boot,
         params=runner.params_at(th_best), base=params, plant=runner.plant,
@@ -667,10 +664,13 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
 
 def _bootstrap(prob: _Problem, runner: ModelRunner, fitted: dict[str, FloatArray],
                z_best: FloatArray, cfg: FitSettings, period: float,
-               progress: Callable[[str, int, int], None] | None) -> FloatArray:
+               progress: Callable[[str, int, int], None] | None,
+               resume: FloatArray | None = None,
+               checkpoint: Callable[[FloatArray], None] | None = None) -> FloatArray:
     """Refits to the fitted traces plus moving blocks of the residuals (the same blocks for
     every channel), each from the estimate; replicate i draws from its own generator
-    (seed, i), so the result does not depend on the order the refits run in."""
+    (seed, i), so the result does not depend on the order the refits run in, and a run
+    resumed from its first k estimates (``resume``) equals the uninterrupted one."""
     used = prob.used
     idx_used = np.flatnonzero(used)
     m = idx_used.size
@@ -678,7 +678,18 @@ def _bootstrap(prob: _Problem, runner: ModelRunner, fitted: dict[str, FloatArray
     block = min(block, m)
     res = {c: prob.data[c] - fitted[c] for c in prob.channels}
     out = np.full((cfg.bootstrap, z_best.size), np.nan)
-    for i in range(cfg.bootstrap):
+    first = 0
+    if resume is not None and resume.size:
+        prev = np.asarray(resume, dtype=np.float64)
+        if prev.ndim != 2 or prev.shape[1] != z_best.size or prev.shape[0] > cfg.bootstrap:
+            raise InputError(f"cannot resume the bootstrap: the saved estimates have shape "
+                             f"{prev.shape}, this run needs at most ({cfg.bootstrap}, "
+                             f"{z_best.size})")
+        first = prev.shape[0]
+        out[:first] = prev
+        if progress is not None:
+            progress("bootstrap", first, cfg.bootstrap)
+    for i in range(first, cfg.bootstrap):
         g = np.random.default_rng([cfg.seed, 2700, i])
         n_blocks = -(-m // block)
         starts = g.integers(0, m - block + 1, size=n_blocks)
@@ -695,6 +706,8 @@ def _bootstrap(prob: _Problem, runner: ModelRunner, fitted: dict[str, FloatArray
             out[i] = pb.to_theta(z)
         except (ValueError, FloatingPointError, np.linalg.LinAlgError):
             pass
+        if checkpoint is not None:
+            checkpoint(out[:i + 1].copy())
         if progress is not None:
             progress("bootstrap", i + 1, cfg.bootstrap)
     return out

@@ -29,11 +29,13 @@ __all__ = [
     "GROUPS",
     "LoadParams",
     "MIN_SUPPLY_PRESSURE",
+    "RECORD_TABLE",
     "ServoParams",
     "SupplyParams",
     "TransducerParams",
     "ValveParams",
     "allowed_names",
+    "field_unit",
     "load_toml",
     "read_overrides_toml",
     "to_dict",
@@ -290,6 +292,10 @@ class ServoParams:
         return self.valve.rated_flow / self.cylinder.piston_area
 
 
+#: The table of a parameter file that records how it was made (``fuzzyservo identify``
+#: writes the data's digest, the estimates and their uncertainty there); readers skip it.
+RECORD_TABLE = "identification"
+
 GROUPS: dict[str, type] = {
     "cylinder": CylinderParams,
     "valve": ValveParams,
@@ -304,6 +310,30 @@ GROUPS: dict[str, type] = {
 def allowed_names() -> list[str]:
     """All ``group.field`` names a parameter file or ``--param`` may set."""
     return [f"{g}.{f.name}" for g, cls in GROUPS.items() for f in fields(cls)]
+
+
+def field_unit(name: str) -> str:
+    """The unit of parameter ``group.field`` as its field's doc comment gives it (``#: ...
+    [unit]``, e.g. ``kg`` for ``load.mass``), or "SI" when the comment names none.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown name.
+    """
+    import inspect
+    import re
+
+    if name not in allowed_names():
+        raise ParameterError(f"unknown parameter {name!r}; allowed names: "
+                             f"{', '.join(allowed_names())}")
+    group, fname = name.split(".", 1)
+    try:
+        src = inspect.getsource(GROUPS[group])
+    except (OSError, TypeError):  # no source (a frozen install): no unit
+        return "SI"
+    m = re.search(rf"^\s*{re.escape(fname)}\s*:.*#:.*\[([^\]]+)\]\s*$", src, re.MULTILINE)
+    return m.group(1) if m else "SI"
 
 
 def to_dict(params: ServoParams) -> dict[str, dict[str, float]]:
@@ -357,6 +387,8 @@ def read_overrides_toml(path: str | Path) -> dict[str, float]:
     data = parse_toml(text, f"parameter file {str(path)!r}")
     flat: dict[str, Any] = {}
     for group, table in data.items():
+        if group == RECORD_TABLE:
+            continue  # how the file was made (``fuzzyservo identify``): not a parameter
         if group not in GROUPS:
             raise ParameterError(
                 f"unknown parameter group {group!r} in {str(path)!r}; allowed groups: "

@@ -40,9 +40,7 @@ Choices:
 
 from __future__ import annotations
 
-import inspect
 import math
-import re
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -63,7 +61,7 @@ from ..analysis.outcome import (
 )
 from ..errors import InputError
 from ..files.html import Figure, Section, Table, write_html
-from ..plant.params import GROUPS
+from ..plant.params import field_unit
 from ..plots import sweep_figures as sf
 from ..sim.stepinfo import SETTLE_HOLD_FRACTION
 from .dataset import Manifest, finished_files, read_manifest, read_table
@@ -210,15 +208,8 @@ def load(folder: str | Path) -> SweepData:
 # ---- quantities -------------------------------------------------------------------------------
 
 def _param_unit(name: str) -> str:
-    """The unit of parameter ``group.field`` from its field's doc comment (``#: ... [unit]``,
-    STYLE.md section 2), or "SI"."""
-    group, fname = name.split(".", 1)
-    try:
-        src = inspect.getsource(GROUPS[group])
-    except (OSError, TypeError, KeyError):
-        return "SI"
-    m = re.search(rf"^\s*{re.escape(fname)}\s*:.*#:.*\[([^\]]+)\]\s*$", src, re.MULTILINE)
-    return m.group(1) if m else "SI"
+    """The unit of parameter ``group.field`` (:func:`fuzzyservo.plant.params.field_unit`)."""
+    return field_unit(name)
 
 
 def _quantity(spec: SweepSpec, var: Variation) -> Quantity:
