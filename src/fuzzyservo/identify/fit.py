@@ -132,7 +132,7 @@ class Identification:
     units: tuple[str, ...]  #: their units (from the parameter classes' docs)
     initial: FloatArray  #: the parameter set's values of the fields [SI]
     estimate: FloatArray  #: the estimates [SI]
-    std_error: FloatArray  #: standard errors (delta method) [SI]
+    std_error: FloatArray  #: standard errors (delta method; inf: not determined) [SI]
     correlation: FloatArray  #: correlation matrix of the estimates (p, p) [1]
     bounds: FloatArray  #: (p, 2) bounds of the search [SI]
     interval: FloatArray | None  #: (p, 2) bootstrap percentile interval [SI], or None
@@ -426,16 +426,21 @@ def _solve(problem: _Problem, z0: FloatArray, max_nfev: int) -> tuple[FloatArray
     return np.asarray(sol.x, dtype=np.float64), float(sol.cost)
 
 
-def _covariance(problem: _Problem, z: FloatArray) -> tuple[FloatArray, float]:
-    """Covariance of z, s² (JᵀJ)⁻¹ (pseudo-inverse), and the reduced chi-square s²."""
+def _covariance(problem: _Problem, z: FloatArray) -> tuple[FloatArray, float, FloatArray]:
+    """Covariance of z, s² (JᵀJ)⁻¹, the reduced chi-square s², and the unit vectors of the
+    directions the data do not determine (rows; JᵀJ's eigenvalues below 1e-12 of the
+    largest): along them the variance is unbounded."""
     f = problem.residuals(z)
     jac = problem.jacobian(z)
     m, p = jac.shape
     dof = max(1, m - p)
     s2 = float(f @ f) / dof
-    jtj = jac.T @ jac
-    cov = np.linalg.pinv(jtj, rcond=1e-12, hermitian=True) * s2
-    return cov, s2
+    w, v = np.linalg.eigh(jac.T @ jac)
+    top = float(np.max(np.abs(w))) if w.size else 0.0
+    null = w <= 1e-12 * top if top > 0.0 else np.ones(p, dtype=bool)
+    inv = np.where(null, 0.0, 1.0 / np.where(null, 1.0, w))
+    cov = (v * inv) @ v.T * s2
+    return cov, s2, v[:, null].T
 
 
 def identify(
@@ -617,13 +622,18 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
             prob = _Problem(runner, lo, hi, chans, data, used, sigma)
             z_best, _ = _solve(prob, z_best, cfg.max_nfev)
             th_best = prob.to_theta(z_best)
-    cov_z, s2 = _covariance(prob, z_best)
+    cov_z, s2, null = _covariance(prob, z_best)
     d = prob.dtheta_dz(z_best)
     cov = cov_z * np.outer(d, d)
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(se, se)
     corr = np.where(np.isfinite(corr), corr, 0.0)
+    for vec in null:  # undetermined along vec: unbounded errors, moving together along it
+        on = np.abs(vec) > 1e-6
+        se[on] = np.inf
+        both = np.outer(on, on)
+        corr = np.where(both, np.sign(np.outer(vec, vec)), corr)
     np.fill_diagonal(corr, 1.0)
     fitted = runner.run(th_best)
     if fitted is None:  # the optimum was run above; a failure here would be a bug
