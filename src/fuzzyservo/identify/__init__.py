@@ -1,0 +1,1 @@
+"""fuzzyservo.identify: identify the servo model from measured data."""
