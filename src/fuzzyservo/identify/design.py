@@ -163,7 +163,6 @@ def _samples(seconds: float, dt: float) -> int:
 class _Plan:
     """The design's timing, decided before the amplitudes."""
 
-    settle: float  #: ring-down time of the hydraulic mode [s]
     pulse: int  #: samples of a +a pulse
     f0: float  #: chirp start [Hz]
     f1: float  #: chirp end [Hz]
@@ -345,7 +344,7 @@ def design_experiment(params: ServoParams, *, position: float | None = None, dt:
     t_c = min(max(3.0 * span / (2.0 * z_eff**2 * omega_h), 5.0), 60.0)
     cycles = max(3, math.ceil(t_c * (f1 - f0) / span))
     t_c = cycles * span / (f1 - f0)  # a whole number of cycles: φ(T) = 2π N
-    plan = _Plan(settle=settle, pulse=pulse, f0=f0, f1=f1, chirp_time=t_c)
+    plan = _Plan(pulse=pulse, f0=f0, f1=f1, chirp_time=t_c)
 
     # the pulses: K_o a (T + 2/ω_h) within the share of the room (the ramp plus its ringing)
     a_s = min(amplitude, a_valve,
