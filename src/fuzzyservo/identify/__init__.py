@@ -8,6 +8,7 @@ when the data cannot identify a parameter, naming the experiment that would.
 """
 
 from .advice import CORRELATION_LIMIT, identifiability_warnings, remedy
+from .design import ExperimentDesign, design_experiment
 from .fit import (
     CHANNELS,
     DEFAULT_STARTS,
@@ -24,10 +25,12 @@ __all__ = [
     "CHANNELS",
     "CORRELATION_LIMIT",
     "DEFAULT_STARTS",
+    "ExperimentDesign",
     "FitSettings",
     "Identification",
     "ModelRunner",
     "default_bounds",
+    "design_experiment",
     "identifiability_warnings",
     "identify",
     "noise_level",
