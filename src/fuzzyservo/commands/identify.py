@@ -124,6 +124,13 @@ def register(subparsers: Any) -> None:
     design.add_argument("--amplitude", type=float, default=0.2, metavar="A",
                         help="largest excitation as a fraction of the rated command "
                              "(default 0.2)")
+    design.add_argument("--f-max", type=float, default=None, metavar="HZ",
+                        help="top of the designed chirp [Hz] (default 1.5 times the hydraulic "
+                             "natural frequency; raise it toward the valve's band to identify "
+                             "valve.omega_v)")
+    design.add_argument("--margin", type=float, default=0.1, metavar="FRACTION",
+                        help="stroke kept free at each end, as a fraction of the stroke "
+                             "(default 0.1)")
     design.add_argument("--ts", type=float, default=None, metavar="S",
                         help="sample time of the designed sequence, and of a closed-loop "
                              "controller [s] (default 0.001, or the gains file's)")
@@ -421,7 +428,7 @@ def _design(args: argparse.Namespace) -> int:
     ts = 1e-3 if args.ts is None else args.ts
     _say(args, "designing the experiment and checking it on the nominal model")
     design = design_experiment(params, position=args.start * params.cylinder.stroke, dt=ts,
-                               amplitude=args.amplitude)
+                               amplitude=args.amplitude, margin=args.margin, f_max=args.f_max)
     design.to_csv(args.out)
     for line in describe_design(design):
         print(line)
