@@ -5,7 +5,9 @@ Closed loop: ``--controller NAME --gains NAME=VALUE,...`` or ``--gains FILE.toml
 ``--reference`` offset from the start position. A gains file with a tuning record runs as
 tuned: its plant, parameter set and overrides, start, step, duration, delay and sample time
 fill every option not given, and a note on standard error says which, and what differs.
-Open loop: ``--open-loop --command U``. Any plant of the registry
+Open loop: ``--open-loop --command U|FILE.csv`` (a constant, or a sequence of t, u such as
+``fuzzyservo identify --design`` writes; ``--noise-std`` adds the transducer's noise to the
+logged position). Any plant of the registry
 (``--plant linear|small-signal|nonlinear``) in either. The hose delay is none unless
 ``--delay S`` or ``--delay hose`` asks for it, as in every other entry point.
 
@@ -96,9 +98,12 @@ def register(subparsers: Any) -> None:
                          "superposition; docs/model.md) (default: none)")
     ol = parser.add_argument_group("open loop")
     ol.add_argument("--open-loop", action="store_true",
-                    help="apply a constant valve command instead of a controller")
-    ol.add_argument("--command", type=float, default=None, metavar="U",
-                    help="open-loop valve command, fraction of rated input in [-1, 1]")
+                    help="apply a valve command (--command) instead of a controller")
+    ol.add_argument("--command", default=None, metavar="U|FILE.csv",
+                    help="open-loop valve command, fraction of rated input in [-1, 1]: a "
+                         "constant, or a CSV with columns t, u (a sequence sampled every "
+                         "--ts, e.g. what 'fuzzyservo identify --design' writes; its length "
+                         "is the default --duration)")
     ol.add_argument("--method", choices=("rk4", "solve_ivp"), default="rk4",
                     help="open loop on the nonlinear plant: the compiled loop (default) or "
                          "scipy's solve_ivp (DOP853), the reference")
@@ -108,6 +113,48 @@ def register(subparsers: Any) -> None:
                          f"(default {MAX_RHS_EVALUATIONS:g}; a stiff model can need millions)")
     add_plant_arguments(parser)
     parser.set_defaults(handler=run)
+
+
+def _open_loop_command(text: str, ts: float | None) -> tuple[Any, float, float | None]:
+    """``--command``: a constant, or a CSV file of t, u. Returns the command (a float, or the
+    samples held from each t_k), the sample time [s] and the file's length [s] (None for a
+    constant).
+
+    Raises
+    ------
+    ParameterError, InputError
+        A constant outside [-1, 1]; a file that cannot be read, lacks t or u, has uneven
+        time steps, a step other than ``--ts``, or a value outside [-1, 1].
+    """
+    try:
+        value = float(text)
+    except ValueError:
+        value = None
+    if value is not None:
+        if not (math.isfinite(value) and -1.0 <= value <= 1.0):
+            raise ParameterError(f"--command must be in [-1, 1] (fraction of rated input), "
+                                 f"got {value!r}")
+        return value, run_default("ts") if ts is None else ts, None
+    import numpy as np
+
+    from .._io import read_csv_columns
+
+    cols = read_csv_columns(Path(text), ("t", "u"), what="command file", min_rows=2)
+    t, u = cols["t"], cols["u"]
+    steps = np.diff(t)
+    step = float(np.median(steps))
+    if not (step > 0.0 and np.all(np.abs(steps - step) <= 1e-6 * step)):
+        raise InputError(f"command file {text!r}: the times must be evenly spaced (found steps "
+                         f"from {float(steps.min()):g} to {float(steps.max()):g} s)")
+    if ts is not None and abs(ts - step) > 1e-9 * step:
+        raise InputError(f"command file {text!r} is sampled every {step:g} s, not --ts "
+                         f"{ts:g} s")
+    bad = np.flatnonzero(np.abs(u) > 1.0)
+    if bad.size:
+        raise ParameterError(f"command file {text!r}: u = {float(u[bad[0]])!r} at t = "
+                             f"{float(t[bad[0]]):g} s; it must be in [-1, 1] (fraction of "
+                             f"rated input)")
+    return np.ascontiguousarray(u), step, float(t[-1] - t[0])
 
 
 def _count(text: str) -> int:
@@ -315,26 +362,44 @@ def run(args: argparse.Namespace) -> int:
                              "--controller/--gains or --open-loop")
         if args.command is None:
             raise InputError("--open-loop needs --command U (fraction of rated input in "
-                             "[-1, 1])")
-        if not (math.isfinite(args.command) and -1.0 <= args.command <= 1.0):
-            raise ParameterError(f"--command must be in [-1, 1] (fraction of rated input), "
-                                 f"got {args.command!r}")
-        if args.noise_std or args.reference is not None or args.load_force:
-            raise InputError("--noise-std, --reference and --load-force belong to the closed "
-                             "loop; the open loop applies --command")
-        ts = run_default("ts") if args.ts is None else args.ts
+                             "[-1, 1]) or --command FILE.csv (columns t, u)")
+        if args.reference is not None or args.load_force:
+            raise InputError("--reference and --load-force belong to the closed loop; the "
+                             "open loop applies --command")
+        if not (math.isfinite(args.noise_std) and args.noise_std >= 0.0):
+            raise ParameterError(f"--noise-std must be finite and >= 0 m, got "
+                                 f"{args.noise_std!r}")
+        command, ts, length = _open_loop_command(args.command, args.ts)
+        if args.duration is None and length is not None:
+            args.duration = length
         run_ = _settings(args, None, ts, "")
         plant = build_plant(run_.plant, run_.params, run_.start * run_.params.cylinder.stroke,
                             substep=args.substep)
         if args.max_evaluations < 1:
             raise ParameterError(f"--max-evaluations must be a positive integer, got "
                                  f"{args.max_evaluations}")
+        if not isinstance(command, float):
+            n = int(round(run_.duration / ts))
+            if n > command.size:
+                raise InputError(f"--command {args.command!r} holds {command.size} samples "
+                                 f"({command.size * ts:g} s); --duration {run_.duration:g} s "
+                                 f"needs {n}")
+            command = command[:n]
         with simulated_time_progress("solve_ivp",
                                      enabled=args.method == "solve_ivp") as progress:
             result: Any = simulate_open_loop(
-                plant, args.command, duration=run_.duration, dt=ts, delay=run_.delay,
+                plant, command, duration=run_.duration, dt=ts, delay=run_.delay,
                 method=args.method, progress=progress, max_rhs_evals=args.max_evaluations)
-        title = f"open loop, u = {args.command:g}, {run_.plant} plant"
+        if args.noise_std > 0.0:  # the transducer's noise on the logged position, seeded
+            from dataclasses import replace
+
+            import numpy as np
+
+            rng = np.random.default_rng(args.seed)
+            result = replace(result, y=result.y + rng.normal(0.0, args.noise_std,
+                                                             result.y.size))
+        shown = f"{command:g}" if isinstance(command, float) else str(args.command)
+        title = f"open loop, u = {shown}, {run_.plant} plant"
     else:
         closed = closed_loop(args)
         result, run_, title = closed.result, closed.settings, closed.title
