@@ -1,0 +1,1 @@
+"""Identification of the servo model from measured data (issue 27)."""
