@@ -101,6 +101,9 @@ UNITS: dict[str, dict[str, tuple[float, float]]] = {
     "command": {"1": (1.0, 1.0), "%": (1.0, 100.0)},
 }
 
+#: The SI unit of each quantity, in notes.
+_SI = {"time": "s", "position": "m", "pressure": "Pa", "command": "a fraction of rated input"}
+
 #: Largest deviation of one time step from the median step, as a fraction of it, for the
 #: stamps to count as uniform [-].
 JITTER = 1e-3
@@ -375,7 +378,7 @@ def read_measurement(path: str | Path, *, columns: Mapping[str, str] | None = No
         raw[signal] = _to_si(raw[signal], mul, div)
         if (mul, div) != (1.0, 1.0):
             notes.append(f"{labels[signal]} converted from {canon} to "
-                         f"{next(iter(UNITS[_QUANTITY[signal]]))}")
+                         f"{_SI[_QUANTITY[signal]]}")
     return _build(raw, labels=labels, found=header, source=source, digest=digest,
                   notes=notes, dt=dt, position_offset=position_offset,
                   pressure_offset=pressure_offset, need=need_, min_samples=min_samples,
@@ -450,8 +453,7 @@ def measurement_from_arrays(t: Any, y: Any, *, u: Any = None, r: Any = None,
         canon, mul, div = _unit_factor(signal, unit, signal)
         raw[signal] = _to_si(raw[signal], mul, div)
         if (mul, div) != (1.0, 1.0):
-            notes.append(f"{signal} converted from {canon} to "
-                         f"{next(iter(UNITS[_QUANTITY[signal]]))}")
+            notes.append(f"{signal} converted from {canon} to {_SI[_QUANTITY[signal]]}")
     return _build(raw, labels={s: s for s in raw}, found=list(raw), source=source,
                   digest="sha256:" + h.hexdigest(), notes=notes, dt=dt,
                   position_offset=position_offset, pressure_offset=pressure_offset,
@@ -504,7 +506,7 @@ def _build(raw: dict[str, FloatArray], *, labels: dict[str, str], found: list[st
         bad = np.flatnonzero(~np.isfinite(a))
         if bad.size:
             k = int(bad[0])
-            where = (f"{labels[signal]} is {a[k]!r} at t = {t[k]:.6g} s "
+            where = (f"{labels[signal]} is {float(a[k])!r} at t = {t[k]:.6g} s "
                      f"({rows} {k + 1})")
             if signal in ("y", *need):
                 raise InputError(f"{source!r}: {where}; every value of the "
@@ -544,11 +546,13 @@ def _build(raw: dict[str, FloatArray], *, labels: dict[str, str], found: list[st
                          f"(always {e[0]:.6g}): nothing to identify")
     tol = MOVE_TOLERANCE * span
     rest = int(np.argmax(np.abs(e - e[0]) > tol))
-    moving = _moving(e, tol, rest, open_loop=excitation == "u")
+    changed = _moving(e, tol)
+    opened = np.abs(e - e[0]) > tol if excitation == "u" else None
     flagged = np.zeros(n, dtype=np.bool_)
     for signal in ("y", "p_f", "p_n"):
         if signal in channels:
-            flagged |= _clipped(channels[signal], signal, t, rest, moving, notes)
+            flagged |= _clipped(channels[signal], signal, t, rest, changed,
+                                opened if signal == "y" else None, notes)
     if "u" in channels:
         sat = np.flatnonzero(np.abs(channels["u"]) >= 1.0)
         if sat.size:
@@ -590,14 +594,15 @@ def _check_time(t: FloatArray, label: str, source: str, rows: str) -> None:
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
         k = int(bad[0])
-        raise InputError(f"{source!r}: the time, {label}, is {t[k]!r} at {rows} {k + 1}; "
+        raise InputError(f"{source!r}: the time, {label}, is {float(t[k])!r} at {rows} {k + 1}; "
                          f"every time must be a number")
     step = np.diff(t)
     back = np.flatnonzero(~(step > 0.0))
     if back.size:
         k = int(back[0])
-        raise InputError(f"{source!r}: the time, {label}, does not increase at {rows} {k + 2}: "
-                         f"{t[k]!r} then {t[k + 1]!r}; the time must increase strictly")
+        raise InputError(f"{source!r}: the time, {label}, does not increase at {rows} "
+                         f"{k + 2}: {float(t[k])!r} then {float(t[k + 1])!r}; the time must "
+                         f"increase strictly")
 
 
 def _uniform(t: FloatArray, channels: dict[str, FloatArray], dt: float | None, source: str,
@@ -636,24 +641,23 @@ def _uniform(t: FloatArray, channels: dict[str, FloatArray], dt: float | None, s
     return grid, step, {s: np.interp(grid, t, a) for s, a in channels.items()}
 
 
-def _moving(e: FloatArray, tol: float, rest: int, *, open_loop: bool) -> BoolArray:
-    """Where the excitation moves: from its first move to its last change; in open loop
-    also wherever the valve command is away from its rest value (the piston should move)."""
-    n = e.shape[0]
-    win = np.zeros(n, dtype=np.bool_)
-    changes = np.flatnonzero(np.abs(np.diff(e)) > tol)
-    last = int(changes[-1]) + 1 if changes.size else rest
-    win[rest:last + 1] = True
-    if open_loop:
-        win[rest:] |= np.abs(e[rest:] - e[0]) > tol
-    return win
+def _moving(e: FloatArray, tol: float) -> BoolArray:
+    """Sample k (k >= 1) where the excitation has changed since sample k - 1."""
+    out = np.zeros(e.shape[0], dtype=np.bool_)
+    out[1:] = np.abs(np.diff(e)) > tol
+    return out
 
 
-def _clipped(x: FloatArray, signal: str, t: FloatArray, rest: int, moving: BoolArray,
-             notes: list[str]) -> BoolArray:
-    """Runs of :data:`CLIP_SAMPLES` or more samples at the column's maximum or minimum that
-    begin after the rest segment (a run that begins in it is the rest value held) and
-    overlap the excitation's movement; a note says where."""
+def _clipped(x: FloatArray, signal: str, t: FloatArray, rest: int, changed: BoolArray,
+             opened: BoolArray | None, notes: list[str]) -> BoolArray:
+    """Runs of :data:`CLIP_SAMPLES` or more samples at the column's maximum or minimum
+    while the excitation moves, flagged; a note says where.
+
+    A run counts when it begins after the rest segment (one that begins in it is the rest
+    value held through the plant's dead time) and the excitation changes while the signal
+    sits still (a steady value after a step is not a clip); ``opened`` (the position in open
+    loop: the valve away from its rest opening) also counts, since an open valve moves the
+    piston unless it is at an end stop."""
     n = x.shape[0]
     out = np.zeros(n, dtype=np.bool_)
     for which, value in (("maximum", float(np.max(x))), ("minimum", float(np.min(x)))):
@@ -663,7 +667,9 @@ def _clipped(x: FloatArray, signal: str, t: FloatArray, rest: int, moving: BoolA
         hits = np.zeros(n, dtype=np.bool_)
         runs = 0
         for a, b in zip(starts.tolist(), stops.tolist(), strict=True):
-            if b - a >= CLIP_SAMPLES and a >= rest and bool(moving[a:b].any()):
+            moves = bool(changed[a + 1:b].any()) or (
+                opened is not None and bool(opened[a:b].any()))
+            if b - a >= CLIP_SAMPLES and a >= rest and moves:
                 hits[a:b] = True
                 runs += 1
         if runs:
