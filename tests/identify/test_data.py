@@ -444,3 +444,30 @@ def test_parse_mapping() -> None:
     for bad in ("y", "y=", "=mm", "y=a,,u=b", "y=a,y=b"):
         with pytest.raises(InputError, match="--units"):
             parse_mapping(bad, "--units")
+
+
+def test_a_run_csv_of_simulate_reads_y_not_x_and_says_why_a_late_step_is_refused(
+        tmp_path: Path) -> None:
+    # fuzzyservo simulate's closed-loop CSV: t, r, y, u, alpha, states (x is the state)
+    rows = [[k * DT, 0.5 if k < 30 else 0.6, 0.5 + 1e-4 * k, 0.1, "nan", 0.5 + 1e-4 * k]
+            for k in range(N)]
+    p = _csv(tmp_path, "t,r,y,u,alpha,x", rows)
+    m = read_measurement(p, need=("r",))
+    assert m.rest == 30 and m.y[1] == 0.5 + 1e-4
+    assert any("column 'y' read as y; 'x' not used" in note for note in m.notes)
+    late = _csv(tmp_path, "t,r,y,u", [row[:4] for row in rows[30:]], name="late.csv")
+    with pytest.raises(InputError, match="never moves .*the step came before the log began"):
+        read_measurement(late, need=("r",), min_samples=2)
+
+
+def test_comments_a_byte_order_mark_and_text_columns(tmp_path: Path) -> None:
+    rows = [[*row, "ok" if k else "?", "OPEN"] for k, row in enumerate(_rows())]
+    p = tmp_path / "bom.csv"
+    text = "# logger v2\n\n" + "t,y,u,status,p_f\n" + "\n".join(
+        ",".join(str(v) for v in row) for row in rows) + "\n"
+    p.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    m = read_measurement(p)
+    assert m.n == N and m.p_f is None
+    assert any("'p_f' (p_f) holds text, not numbers: left out" in note for note in m.notes)
+    with pytest.raises(InputError, match=r"column 'p_f': 'OPEN' is not a number"):
+        read_measurement(p, need=("u", "p_f"))

@@ -233,7 +233,8 @@ def _check_keys(mapping: Mapping[str, str] | None, what: str) -> dict[str, str]:
     return out
 
 
-def _resolve(header: list[str], columns: dict[str, str], source: str) -> dict[str, str]:
+def _resolve(header: list[str], columns: dict[str, str], source: str,
+             notes: list[str]) -> dict[str, str]:
     """Signal -> the header's column name, by ``columns`` first, then by :data:`ALIASES`."""
     found = ", ".join(repr(h) for h in header) or "none"
     base = {h: _split_unit(h)[0].lower() for h in header}
@@ -254,6 +255,12 @@ def _resolve(header: list[str], columns: dict[str, str], source: str) -> dict[st
         if signal in out:
             continue
         hits = [h for h in header if h not in taken and base[h] in names]
+        own = [h for h in hits if base[h] == signal]
+        if len(hits) > 1 and len(own) == 1:  # the signal's own name wins over its aliases
+            notes.append(f"column {own[0]!r} read as {signal}; "
+                         f"{', '.join(repr(h) for h in hits if h != own[0])} not used "
+                         f"(choose with columns {signal}=NAME)")
+            hits = own
         if len(hits) > 1:
             raise InputError(f"{source!r}: columns {', '.join(repr(h) for h in hits)} could "
                              f"each be the {_DESCRIBE[signal]} ({signal}); say which with "
@@ -340,7 +347,8 @@ def read_measurement(path: str | Path, *, columns: Mapping[str, str] | None = No
     if header is None:
         raise InputError(f"{what} {source!r} is empty; expected a header row naming its "
                          f"columns (t, y, u, ...)")
-    names = _resolve(header, columns_, source)
+    notes: list[str] = []
+    names = _resolve(header, columns_, source, notes)
     tcol = names.get("t")
     cols = read_csv_columns(p, (tcol,) if tcol is not None else (), what=what, min_rows=1)
     _check_same(p, before, what)
@@ -348,7 +356,6 @@ def read_measurement(path: str | Path, *, columns: Mapping[str, str] | None = No
     _check_same(p, before, what)
     need_ = _check_need(need)
     required = {"t", "y", *need_}
-    notes: list[str] = []
     raw: dict[str, FloatArray] = {}
     labels: dict[str, str] = {}
     for signal, name in names.items():
@@ -542,8 +549,12 @@ def _build(raw: dict[str, FloatArray], *, labels: dict[str, str], found: list[st
     e = channels[excitation]
     span = float(np.max(e) - np.min(e))
     if not span > 0.0:
+        late = (f"; it differs from the position {float(channels['y'][0]):.6g} m at the "
+                f"first sample: the step came before the log began"
+                if excitation == "r" and abs(float(e[0] - channels["y"][0])) > 0.0 else "")
         raise InputError(f"{source!r}: the {_DESCRIBE[excitation]} ({excitation}) never moves "
-                         f"(always {e[0]:.6g}): nothing to identify")
+                         f"(always {float(e[0]):.6g}): nothing to identify (a log must begin "
+                         f"at rest, before the excitation starts){late}")
     tol = MOVE_TOLERANCE * span
     rest = int(np.argmax(np.abs(e - e[0]) > tol))
     changed = _moving(e, tol)
