@@ -342,6 +342,7 @@ def read_measurement(path: str | Path, *, columns: Mapping[str, str] | None = No
     source = str(path)
     columns_ = _check_keys(columns, "columns")
     units_ = _check_keys(units, "units")
+    args = _Args.check(dt, position_offset, pressure_offset, need, min_samples)
     before = _stat(p)
     header = _header(p, what)
     if header is None:
@@ -350,12 +351,12 @@ def read_measurement(path: str | Path, *, columns: Mapping[str, str] | None = No
     notes: list[str] = []
     names = _resolve(header, columns_, source, notes)
     tcol = names.get("t")
-    cols = read_csv_columns(p, (tcol,) if tcol is not None else (), what=what, min_rows=1)
+    cols = read_csv_columns(p, (tcol,) if tcol is not None else (), what=what, min_rows=1,
+                            keep=names.values())  # the other columns: skipped unparsed
     _check_same(p, before, what)
     digest = "sha256:" + _sha256(p)
     _check_same(p, before, what)
-    need_ = _check_need(need)
-    required = {"t", "y", *need_}
+    required = {"t", "y", *args.need}
     raw: dict[str, FloatArray] = {}
     labels: dict[str, str] = {}
     for signal, name in names.items():
@@ -367,7 +368,6 @@ def read_measurement(path: str | Path, *, columns: Mapping[str, str] | None = No
             continue
         raw[signal] = cols[name]
         labels[signal] = f"column {name!r} ({signal})"
-    del cols  # the columns not used are freed here
     unit_of = {signal: _split_unit(names[signal])[1] for signal in raw}
     for signal in units_:
         if signal not in raw:
@@ -386,10 +386,8 @@ def read_measurement(path: str | Path, *, columns: Mapping[str, str] | None = No
         if (mul, div) != (1.0, 1.0):
             notes.append(f"{labels[signal]} converted from {canon} to "
                          f"{_SI[_QUANTITY[signal]]}")
-    return _build(raw, labels=labels, found=header, source=source, digest=digest,
-                  notes=notes, dt=dt, position_offset=position_offset,
-                  pressure_offset=pressure_offset, need=need_, min_samples=min_samples,
-                  rows="data row")
+    return _build(raw, args, labels=labels, found=header, source=source, digest=digest,
+                  notes=notes, rows="data row")
 
 
 def measurement_from_arrays(t: Any, y: Any, *, u: Any = None, r: Any = None,
@@ -431,7 +429,7 @@ def measurement_from_arrays(t: Any, y: Any, *, u: Any = None, r: Any = None,
         An argument of the wrong type or range.
     """
     units_ = _check_keys(units, "units")
-    need_ = _check_need(need)
+    args = _Args.check(dt, position_offset, pressure_offset, need, min_samples)
     given_ = {"t": t, "y": y, "u": u, "r": r, "p_f": p_f, "p_n": p_n}
     raw: dict[str, FloatArray] = {}
     h = hashlib.sha256()
@@ -461,26 +459,48 @@ def measurement_from_arrays(t: Any, y: Any, *, u: Any = None, r: Any = None,
         raw[signal] = _to_si(raw[signal], mul, div)
         if (mul, div) != (1.0, 1.0):
             notes.append(f"{signal} converted from {canon} to {_SI[_QUANTITY[signal]]}")
-    return _build(raw, labels={s: s for s in raw}, found=list(raw), source=source,
-                  digest="sha256:" + h.hexdigest(), notes=notes, dt=dt,
-                  position_offset=position_offset, pressure_offset=pressure_offset,
-                  need=need_, min_samples=min_samples, rows="sample")
+    return _build(raw, args, labels={s: s for s in raw}, found=list(raw), source=source,
+                  digest="sha256:" + h.hexdigest(), notes=notes, rows="sample")
 
 
 # ---------------------------------------------------------------------------- processing
 
 
-def _build(raw: dict[str, FloatArray], *, labels: dict[str, str], found: list[str],
-           source: str, digest: str, notes: list[str], dt: float | None,
-           position_offset: float | None, pressure_offset: float, need: tuple[str, ...],
-           min_samples: int, rows: str) -> Measurement:
+@dataclass(frozen=True, slots=True)
+class _Args:
+    """The processing options, checked before any file is read."""
+
+    dt: float | None  #: sample time asked for [s]
+    position_offset: float | None  #: added to y and r [m]
+    pressure_offset: float  #: added to the pressures [Pa]
+    need: tuple[str, ...]  #: signals required besides y
+    min_samples: int  #: fewest samples accepted
+
+    @staticmethod
+    def check(dt: Any, position_offset: Any, pressure_offset: Any, need: Any,
+              min_samples: Any) -> _Args:
+        if isinstance(min_samples, bool) or not isinstance(min_samples, numbers.Integral) \
+                or min_samples < 2:
+            raise ParameterError(f"min_samples must be an integer >= 2, got "
+                                 f"{given(min_samples)}")
+        if isinstance(need, str) or not isinstance(need, tuple | list) or \
+                any(s not in CHANNELS for s in need):
+            raise ParameterError(f"need must be a tuple of signal names among "
+                                 f"{', '.join(CHANNELS)}, got {given(need)}")
+        return _Args(
+            dt=None if dt is None else real(dt, "dt", "s", positive=True),
+            position_offset=None if position_offset is None
+            else real(position_offset, "position_offset", "m"),
+            pressure_offset=real(pressure_offset, "pressure_offset", "Pa"),
+            need=tuple(need), min_samples=int(min_samples))
+
+
+def _build(raw: dict[str, FloatArray], args: _Args, *, labels: dict[str, str],
+           found: list[str], source: str, digest: str, notes: list[str],
+           rows: str) -> Measurement:
     """The checks and processing both readers share (see the module's docstring)."""
-    dt_ = None if dt is None else real(dt, "dt", "s", positive=True)
-    y_off = None if position_offset is None else real(position_offset, "position_offset", "m")
-    p_off = real(pressure_offset, "pressure_offset", "Pa")
-    if isinstance(min_samples, bool) or not isinstance(min_samples, numbers.Integral) \
-            or min_samples < 2:
-        raise ParameterError(f"min_samples must be an integer >= 2, got {given(min_samples)}")
+    dt_, y_off, p_off = args.dt, args.position_offset, args.pressure_offset
+    need, min_samples = args.need, args.min_samples
     looked = "; ".join(f"{s}: {', '.join(ALIASES[s])}" for s in ("t", "y", *need))
     shown = ", ".join(repr(f) for f in found) or "none"
     for signal in ("y", *need):
@@ -575,20 +595,13 @@ def _build(raw: dict[str, FloatArray], *, labels: dict[str, str], found: list[st
         raise InputError(f"{source!r}: {count} of {n} samples are clipped or at an end stop "
                          f"(more than half); nothing left to fit")
     arrays = {s: channels.get(s) for s in CHANNELS}
-    for a in (t, flagged, *arrays.values()):
-        if a is not None:
-            a.flags.writeable = False
+    frozen: list[np.ndarray | None] = [t, flagged, *arrays.values()]
+    for arr in frozen:
+        if arr is not None:
+            arr.flags.writeable = False
     return Measurement(t=t, dt=dt_out, y=channels["y"], u=arrays["u"], r=arrays["r"],
                        p_f=arrays["p_f"], p_n=arrays["p_n"], flagged=flagged, source=source,
                        digest=digest, notes=tuple(notes), rest=rest)
-
-
-def _check_need(need: Any) -> tuple[str, ...]:
-    if isinstance(need, str) or not isinstance(need, tuple | list) or \
-            any(s not in CHANNELS for s in need):
-        raise ParameterError(f"need must be a tuple of signal names among "
-                             f"{', '.join(CHANNELS)}, got {given(need)}")
-    return tuple(need)
 
 
 def _to_si(a: FloatArray, mul: float, div: float) -> FloatArray:
