@@ -471,3 +471,19 @@ def test_comments_a_byte_order_mark_and_text_columns(tmp_path: Path) -> None:
     assert any("'p_f' (p_f) holds text, not numbers: left out" in note for note in m.notes)
     with pytest.raises(InputError, match=r"column 'p_f': 'OPEN' is not a number"):
         read_measurement(p, need=("u", "p_f"))
+
+
+def test_options_are_checked_before_the_file_is_read(tmp_path: Path) -> None:
+    missing = tmp_path / "not-there.csv"
+    with pytest.raises(ParameterError, match="pressure_offset must be a finite real number"):
+        read_measurement(missing, pressure_offset=float("nan"))
+    with pytest.raises(ParameterError, match="min_samples must be an integer >= 2"):
+        read_measurement(missing, min_samples=1)
+    with pytest.raises(InputError, match="cannot read measurement CSV"):
+        read_measurement(missing)
+
+
+def test_arrays_without_time_take_dt() -> None:
+    m = measurement_from_arrays(None, np.full(N, 0.5), u=_step(), dt=2e-3)
+    assert m.dt == 2e-3 and np.array_equal(m.t, np.arange(N) * 2e-3)
+    assert m.digest.startswith("sha256:") and len(m.digest) == 7 + 64
