@@ -23,9 +23,20 @@ Time
     data are kept as logged, bit for bit.
 Rest and flags
     ``rest`` counts the leading samples before the excitation (``u`` in open loop, ``r`` in
-    closed loop) leaves its first value by more than :data:`MOVE_TOLERANCE` of its range. A
-    position or pressure that sits at its column's extreme value for :data:`CLIP_SAMPLES` or
-    more samples while the excitation moves is flagged (a clipped sensor or an end stop).
+    closed loop) leaves its first value by more than :data:`MOVE_TOLERANCE` of its range; an
+    excitation that never moves is refused (a log must begin at rest). A position or pressure
+    that sits at its column's extreme value for :data:`CLIP_SAMPLES` or more samples while
+    the excitation moves is flagged (a clipped sensor or an end stop): the run must begin
+    after the rest segment (the rest value held through the dead time is no clip), and the
+    excitation must change during it, or, for the position in open loop, the valve be away
+    from its rest opening (a steady value after a step is no clip). A command at or beyond
+    the rated input (``|u| >= 1``) is noted, not flagged: the model's valve saturates too.
+Offsets
+    The time starts at 0; ``position_offset`` is added to the position and the reference
+    (one frame), ``pressure_offset`` to both pressures.
+Non-finite values
+    In the time, the position or a needed signal: refused, naming the column and the time.
+    In another signal: that signal is left out, with a note.
 
 Every array of a :class:`Measurement` is finite and read-only.
 """
