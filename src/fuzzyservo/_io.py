@@ -927,12 +927,15 @@ def _text_lines(fh: BinaryIO, path: Path, what: str) -> Iterator[str]:
 
 
 def read_csv_columns(path: str | Path, required: tuple[str, ...], *, what: str,
-                     min_rows: int = 1) -> dict[str, FloatArray]:
+                     min_rows: int = 1,
+                     keep: Iterable[str] | None = None) -> dict[str, FloatArray]:
     """The numeric columns of a CSV with a header row, as float arrays (``#`` lines ignored).
 
     ``required`` columns must be present and finite; another column is kept when every cell
     is a number (NaN allowed) and left out otherwise (a text column); ``what`` names the file
-    in messages. The file is read as a stream (memory: the float columns, 8 bytes a value),
+    in messages. ``keep``, if given, names the only other columns read: the rest are skipped
+    unparsed (a rig log of fifty channels read for five costs the memory of five). The file
+    is read as a stream (memory: the float columns kept, 8 bytes a value),
     as strict UTF-8, and every row must have one value per column of the header. Only a
     regular file is read (a FIFO or a device is refused), each line at most
     :data:`MAX_LINE_BYTES`.
@@ -973,7 +976,9 @@ def read_csv_columns(path: str | Path, required: tuple[str, ...], *, what: str,
                             f"expected {want} (found "
                             f"{', '.join(repr(h) for h in header) or 'none'})")
                     need = [h in required for h in header]
-                    values = [array("d") for _ in header]
+                    wanted = None if keep is None else {*keep, *required}
+                    values = [array("d") if wanted is None or h in wanted else None
+                              for h in header]
                     continue
                 if len(row) != len(header):
                     raise InputError(

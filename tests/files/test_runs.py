@@ -32,6 +32,14 @@ def test_comments_blank_lines_bom_crlf_and_text_columns(tmp_path: Path) -> None:
     assert cols["u"].tolist() == [0.0, 0.25]
 
 
+def test_only_the_columns_kept_are_read(tmp_path: Path) -> None:
+    path = tmp_path / "r.csv"
+    path.write_bytes(b"t,a,b,y,c\n0,1,x,2,3\n0.1,4,y,5,oops\n")
+    cols = read_csv_columns(path, ("t",), what="rig log", keep=("y", "b"))
+    assert list(cols) == ["t", "y"]  # 'b' holds text; 'a' and 'c' skipped unparsed
+    assert cols["y"].tolist() == [2.0, 5.0]
+
+
 @pytest.mark.parametrize(("data", "needle"), [
     (b"t,r,y,u\n0,0,0,0\n0.1,1,1,1\n\xe9\n", r"not UTF-8 text: byte 0xe9 at offset 26"),
     (b"\xef\xbb\xbft,r,y,u\n\x80", r"byte 0x80 at offset 11"),

@@ -8,6 +8,7 @@ when the data cannot identify a parameter, naming the experiment that would.
 """
 
 from .advice import CORRELATION_LIMIT, identifiability_warnings, remedy
+from .data import Measurement, measurement_from_arrays, parse_mapping, read_measurement
 from .design import ExperimentDesign, design_experiment
 from .fit import (
     CHANNELS,
@@ -28,12 +29,16 @@ __all__ = [
     "ExperimentDesign",
     "FitSettings",
     "Identification",
+    "Measurement",
     "ModelRunner",
     "default_bounds",
     "design_experiment",
     "identifiability_warnings",
     "identify",
+    "measurement_from_arrays",
     "noise_level",
+    "parse_mapping",
+    "read_measurement",
     "record_document",
     "remedy",
     "render_axis_toml",
