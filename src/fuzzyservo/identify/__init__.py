@@ -1,0 +1,1 @@
+"""fuzzyservo.identify: the servo model identified from measured data (issue 27)."""
