@@ -11,8 +11,8 @@ coefficients are fitted by :func:`scipy.optimize.least_squares` from
 - **time data** (:func:`fit_linear_time`): an open-loop record of the command and the
   position. The model is the package's own: :meth:`LinearPlant.from_servo` simulated by
   :func:`fuzzyservo.sim.simulate_open_loop` (exact ZOH, fractional delays exact), driven
-  by u - u_rest from rest; its output is compared with y less its value at rest. Residuals
-  are in metres;
+  by u - u_rest from rest; its output is compared with y less the position at rest (fitted
+  too). Residuals are in metres;
 - **frequency-response data** (:func:`read_frequency_response`,
   :func:`fit_linear_frequency`): x/u measured at frequencies ω, integrator included (gain in
   m per unit command per rad/s). The residual at each frequency is the complex logarithm of
@@ -116,6 +116,9 @@ class LinearFit:
     residual_rms: float  #: rms residual: time data [m]; frequency data, |H_m/H - 1| [1]
     source: str  #: "time" or "frequency"
     n_data: int  #: samples (time) or frequencies used in the fit
+    #: time data: the position at rest, fitted with the coefficients (the model's output is
+    #: y - y_rest); nan for frequency data [m]
+    y_rest: float
     notes: tuple[str, ...]  #: what the data do not decide, held values, warnings
 
     def value(self, name: str) -> float:
@@ -235,9 +238,12 @@ def _jacobian(fun: Callable[[FloatArray], FloatArray], theta: FloatArray,
 
 
 def _solve(space: _Space, residual: Callable[[FloatArray], FloatArray],
-           starts: list[FloatArray]) -> tuple[FloatArray, FloatArray, list[str]]:
+           starts: list[FloatArray], nuisance: int = 0
+           ) -> tuple[FloatArray, FloatArray, list[str]]:
     """Refine the starts by bounded least squares; the best estimate θ, its covariance (in θ)
-    and notes."""
+    and notes. ``nuisance``: linear parameters ``residual`` projects out (Golub and Pereyra's
+    variable projection: the projected Jacobian gives θ's covariance; they cost degrees of
+    freedom)."""
     from scipy.optimize import least_squares
 
     lo, hi = space.bounds()
@@ -258,7 +264,7 @@ def _solve(space: _Space, residual: Callable[[FloatArray], FloatArray],
     theta = np.asarray(best.x, dtype=np.float64)
     r = residual(theta)
     jac = _jacobian(residual, theta, lo, hi)
-    dof = r.size - theta.size
+    dof = r.size - theta.size - nuisance
     s2 = float(r @ r) / dof
     notes: list[str] = []
     jtj = jac.T @ jac
@@ -413,9 +419,9 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
 
     Notes
     -----
-    The position at rest is the mean of y over the samples up to the first change of the
-    command (the model's output cannot move before then), so a quiet lead-in averages the
-    measurement noise out of the reference.
+    The position at rest is fitted with the coefficients (a linear parameter projected out
+    of the residual, its degree of freedom counted): taking it from y[0], or from a lead-in's
+    mean, leaves its noise as an offset that biases K_o beyond its standard error.
     """
     names = _check_names(fit)
     if isinstance(dt, bool) or not isinstance(dt, int | float) or not (
@@ -479,25 +485,33 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
         out: FloatArray = (res.y - position) * scale
         return out
 
-    def residual(theta: FloatArray) -> FloatArray:
+    def raw(theta: FloatArray) -> FloatArray:
         out: FloatArray = (simulate(space.values(theta)) - target)[keep]
         return out
+
+    def residual(theta: FloatArray) -> FloatArray:
+        r = raw(theta)
+        out: FloatArray = r - np.mean(r)  # the rest position at its best (projected out)
+        return out
+
+    z = target[keep] - np.mean(target[keep])
 
     def cost(values: dict[str, float]) -> tuple[float, float]:
         if "K_o" not in space.names:
             r = (simulate(values) - target)[keep]
+            r = r - np.mean(r)
             return float(r @ r), values["K_o"]
-        unit = dict(values, K_o=1.0)
-        m = simulate(unit)[keep]
-        z = target[keep]
+        m = simulate(dict(values, K_o=1.0))[keep]
+        m = m - np.mean(m)
         k_best = float(m @ z) / float(m @ m) if float(m @ m) > 0.0 else 0.0
         r = k_best * m - z
         return float(r @ r), k_best
 
     if "K_o" in names:
         # the slowest reading of the gain: y ≈ K_o ∫(u - u_rest) dt
-        ramp = np.concatenate([[0.0], np.cumsum(drive) * dt])
-        gain = float(ramp[keep] @ target[keep]) / max(float(ramp[keep] @ ramp[keep]), 1e-300)
+        ramp = np.concatenate([[0.0], np.cumsum(drive) * dt])[keep]
+        ramp = ramp - np.mean(ramp)
+        gain = float(ramp @ z) / max(float(ramp @ ramp), 1e-300)
         if gain <= 0.0:
             raise InputError("the position moves against the command (the gain of y against "
                              "the integral of u - u_rest is negative): check the signs of "
@@ -509,10 +523,11 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
     grid_w = [w for w in grid_w if 0.0 < w < 0.5 * nyquist] or [base_w]
     grid_d = sorted(d for d in {0.0, float(delay), 5 * dt, 20 * dt} if d <= space.delay_max)
     starts = _grid_starts(space, cost, grid_w, grid_d)
-    theta, cov_theta, notes = _solve(space, residual, starts)
+    theta, cov_theta, notes = _solve(space, residual, starts, nuisance=1)
     estimate, se, corr, corr_notes = _summarise(space, theta, cov_theta)
     values = space.values(theta)
     r = residual(theta)
+    y_rest = y_ref - float(np.mean(raw(theta)))
     notes = _held_notes(space, "eq. (8) of the base parameters") + notes + corr_notes
     if "omega_h" in names and values["omega_h"] > nyquist:
         notes.append(f"omega_h = {values['omega_h']:.4g} rad/s is above the Nyquist "
@@ -520,7 +535,7 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
     return LinearFit(names=names, estimate=estimate, std_error=se, correlation=corr,
                      servo=_servo(values, tau_v), delay=values["delay"],
                      residual_rms=float(np.sqrt(np.mean(r * r))), source="time",
-                     n_data=int(r.size), notes=tuple(notes))
+                     n_data=int(r.size), y_rest=y_rest, notes=tuple(notes))
 
 
 # -- frequency data ------------------------------------------------------------------------
@@ -784,7 +799,8 @@ def fit_linear_frequency(w: ArrayLike, H: ArrayLike, *, params: ServoParams,  # 
     return LinearFit(names=names, estimate=estimate, std_error=se, correlation=corr,
                      servo=_servo(values, tau_v), delay=values["delay"],
                      residual_rms=float(np.sqrt(np.mean(np.abs(ratio - 1.0) ** 2))),
-                     source="frequency", n_data=int(ww.size), notes=tuple(notes))
+                     source="frequency", n_data=int(ww.size), y_rest=math.nan,
+                     notes=tuple(notes))
 
 
 # -- the physical parameters a fit implies -------------------------------------------------
