@@ -108,6 +108,8 @@ def test_time_noise_free_recovers_to_1e_6(paper: ServoParams,
     assert fit.residual_rms < 1e-9 * np.ptp(y)  # the model reproduces the reference
     assert fit.servo.omega_0 == fit.estimate[1] and fit.delay == fit.estimate[3]
     assert fit.servo.omega_v == paper.valve.omega_v  # held from the base parameters
+    assert fit.y_rest == pytest.approx(POS, abs=1e-12)  # the rest position, fitted [m]
+    assert describe(fit)[0].endswith("position at rest 0.5 m")
     assert any("held" in n and "omega_v" in n for n in fit.notes)
 
 

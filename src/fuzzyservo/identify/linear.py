@@ -365,7 +365,8 @@ def _float_array(values: ArrayLike, what: str) -> FloatArray:
     return arr
 
 
-def _first_bad(arr: FloatArray, ok: npt.NDArray[np.bool_]) -> int:
+def _first_bad(ok: npt.NDArray[np.bool_]) -> int:
+    """Index of the first False, or -1."""
     return int(np.argmin(ok)) if not np.all(ok) else -1
 
 
@@ -442,11 +443,11 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
         raise InputError(f"{used} usable samples; fitting {len(names)} coefficient(s) needs "
                          f"at least {len(names) + 4}")
     for arr, what, unit in ((tt, "t", "s"), (uu, "u", "")):
-        k = _first_bad(arr, np.isfinite(arr))
+        k = _first_bad(np.isfinite(arr))
         if k >= 0:
             raise InputError(f"{what} at sample {k} is {arr[k]!r}{unit and ' ' + unit}; "
                              f"every value must be finite")
-    k = _first_bad(yy, np.isfinite(yy) | skip)
+    k = _first_bad(np.isfinite(yy) | skip)
     if k >= 0:
         raise InputError(f"y at sample {k} (t = {tt[k]:.6g} s) is {yy[k]!r}; every unflagged "
                          f"position must be finite")
@@ -1101,7 +1102,8 @@ def describe(fit: LinearFit, implied: Sequence[ImpliedParameter] | Sequence[
     count = "samples" if fit.source == "time" else "frequencies"
     rms = (f"{fit.residual_rms:.3g} m" if fit.source == "time"
            else f"{fit.residual_rms:.3g} (|H_model/H - 1|)")
-    lines = [f"eq. (8) fitted to {what} ({fit.n_data} {count}): residual rms {rms}"]
+    lines = [f"eq. (8) fitted to {what} ({fit.n_data} {count}): residual rms {rms}"
+             + (f", position at rest {fit.y_rest:.6g} m" if fit.source == "time" else "")]
     width = max(len(n) for n in fit.names)
     for n, v, se in zip(fit.names, fit.estimate.tolist(), fit.std_error.tolist(), strict=True):
         lines.append(f"  {n:<{width}} = {_with_error(v, se, LINEAR_UNITS[n])}")
@@ -1137,6 +1139,7 @@ def to_record(fit: LinearFit, implied: Sequence[ImpliedParameter] = ()) -> dict[
         "n_data": fit.n_data,
         "residual_rms": fit.residual_rms,
         "residual_unit": "m" if fit.source == "time" else "1",
+        "y_rest": fit.y_rest,
         "fitted": {n: {"value": v, "std_error": se, "unit": LINEAR_UNITS[n]}
                    for n, v, se in zip(fit.names, fit.estimate.tolist(),
                                        fit.std_error.tolist(), strict=True)},
