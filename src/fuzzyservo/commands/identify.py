@@ -41,8 +41,10 @@ from ._runargs import (
 
 __all__ = ["LINEAR_NAMES", "describe", "parse_bounds", "partial_path", "register", "run"]
 
-#: The coefficients of eq. (8) that ``--fit`` may name instead of parameter fields.
-LINEAR_NAMES = ("K_o", "omega_h", "zeta_h", "delay")
+#: The coefficients of eq. (8) that ``--fit`` may name instead of parameter fields
+#: (:data:`fuzzyservo.identify.linear.LINEAR_NAMES`; a test keeps the two equal: this
+#: module is imported for ``--help`` and stays light).
+LINEAR_NAMES = ("K_o", "omega_h", "zeta_h", "delay", "omega_v", "zeta_v")
 
 
 def register(subparsers: Any) -> None:
@@ -119,8 +121,9 @@ def register(subparsers: Any) -> None:
                            "[Pa] (default 0)")
     design = parser.add_argument_group("--design")
     design.add_argument("--start", type=float, default=0.5, metavar="FRACTION",
-                        help="start position of the experiment as a fraction of the stroke "
-                             "(default 0.5)")
+                        help="start position of the experiment (--design), or where a "
+                             "frequency response was measured (--frequency-response), as a "
+                             "fraction of the stroke (default 0.5)")
     design.add_argument("--amplitude", type=float, default=0.2, metavar="A",
                         help="largest excitation as a fraction of the rated command "
                              "(default 0.2)")
@@ -191,13 +194,29 @@ def _say(args: argparse.Namespace, text: str) -> None:
 def _progress(args: argparse.Namespace) -> Iterator[Callable[[str, int, int], None]]:
     """A progress callback ``(stage, done, total)``: a tqdm bar with rate and time left on a
     terminal, else one line per finished step."""
+    import time
+
     bars: dict[str, Any] = {}
     tty = sys.stderr.isatty()
+    last = [time.monotonic(), time.monotonic()]  # start, last line
 
     def report(stage: str, done: int, total: int) -> None:
         if args.quiet:
             return
+        if total == 0:  # a new cost inside a search: a line at most every second
+            now = time.monotonic()
+            if now - last[1] >= 1.0:
+                last[1] = now
+                rate = done / max(now - last[0], 1e-9)
+                text = (f"fuzzyservo identify: {stage}, {done} model runs "
+                        f"({rate:.0f}/s)")
+                if tty and not bars:
+                    print(f"\r{text}\033[K", end="", file=sys.stderr, flush=True)
+                elif not tty:
+                    print(text, file=sys.stderr, flush=True)
+            return
         if tty:
+            print("\r\033[K", end="", file=sys.stderr, flush=True)
             from tqdm import tqdm
 
             bar = bars.get(stage)
@@ -272,7 +291,10 @@ def _controller(args: argparse.Namespace, dt: float) -> Any:
 
 def _fields(args: argparse.Namespace, names: list[str]) -> int:
     from ..identify import FitSettings, identify, render_axis_toml
+    from ..identify.fit import check_names
 
+    check_names(names)  # the arguments first: one line before any file is read
+    bounds = parse_bounds(args.bounds)
     params = params_from_args(args)
     closed = args.controller is not None or args.gains is not None
     m = _read(args, ("r",) if closed else ("u",))
@@ -298,7 +320,7 @@ def _fields(args: argparse.Namespace, names: list[str]) -> int:
 
     with _progress(args) as progress:
         ident = identify(m, plant=args.plant, params=params, fit=names,
-                         bounds=parse_bounds(args.bounds), controller=controller,
+                         bounds=bounds, controller=controller,
                          substep=args.substep, command_offset=args.command_offset,
                          channels=channels, settings=settings, progress=progress,
                          resume=resume, checkpoint=save if args.bootstrap else None)
@@ -438,20 +460,22 @@ def _design(args: argparse.Namespace) -> int:
 
 def _linear_record(args: argparse.Namespace, fit: Any, implied: list[Any], params: Any,
                    digest: str, source: str) -> str:
+    """The parameter file of an eq. (8) fit: the set with every implied parameter that the
+    fit determines replaced, and the fit's record."""
+    import math
+
     import tomli_w
 
     from ..identify.linear import to_record
     from ..plant import to_dict, with_overrides
     from ..plant.params import RECORD_TABLE
 
-    chosen = {name: value for name, value, _how in implied
-              if isinstance(value, float) and name in _WRITTEN}
+    chosen = {p.name: p.value for p in implied if math.isfinite(p.value)}
     identified = with_overrides(params, chosen) if chosen else params
     doc: dict[str, Any] = dict(to_dict(identified))
-    rec = dict(to_record(fit))
+    rec = dict(to_record(fit, implied))
     rec.update({"version": __version__, "command": _command(args), "data": source,
                 "data_digest": digest, "base_set": set_name(args),
-                "implied": [f"{n} = {v!r} ({how})" for n, v, how in implied],
                 "written": sorted(chosen)})
     doc[RECORD_TABLE] = rec
     return ("# The parameter set eq. (8)'s fitted coefficients imply (SI units; every field). "
@@ -459,13 +483,10 @@ def _linear_record(args: argparse.Namespace, fit: Any, implied: list[Any], param
             + tomli_w.dumps(doc))
 
 
-#: The implied physical parameters written into the output file (the others are printed).
-_WRITTEN = ("valve.rated_flow", "load.mass", "valve.null_leakage")
-
-
 def _linear_time(args: argparse.Namespace, names: list[str]) -> int:
+    from ..identify import write_axis_toml
     from ..identify.linear import describe as describe_linear
-    from ..identify.linear import fit_linear_time, implied_parameters
+    from ..identify.linear import fit_linear_time, implied_estimates
 
     bad = [n for n in names if n not in LINEAR_NAMES]
     if bad:
@@ -474,9 +495,6 @@ def _linear_time(args: argparse.Namespace, names: list[str]) -> int:
     if args.plant != "linear":
         raise UsageError(f"--fit {','.join(names)} fits eq. (8) directly: give --plant linear "
                          f"(got --plant {args.plant})")
-    if "K_o" not in names or "omega_h" not in names or "zeta_h" not in names:
-        raise UsageError("eq. (8)'s direct fit takes K_o, omega_h and zeta_h (and optionally "
-                         "delay): --fit K_o,omega_h,zeta_h[,delay]")
     params = params_from_args(args)
     m = _read(args, ("u",))
     for note in m.notes:
@@ -485,14 +503,11 @@ def _linear_time(args: argparse.Namespace, names: list[str]) -> int:
     position = float(m.y[:rest].mean())
     u_rest = float(m.u[:rest].mean())
     _say(args, f"fitting eq. (8)'s {', '.join(names)} ({m.t.size} samples at {m.dt:g} s)")
-    fit = fit_linear_time(m.t, m.u, m.y, params=params, position=position,
-                          fit_delay="delay" in names, dt=m.dt, flagged=m.flagged,
-                          u_rest=u_rest)
-    implied = implied_parameters(fit, params, position)
-    text = _linear_record(args, fit, implied, params, m.digest, str(args.data))
-    from ..identify import write_axis_toml
-
-    write_axis_toml(args.out, text)
+    fit = fit_linear_time(m.t, m.u, m.y, params=params, position=position, dt=m.dt,
+                          fit=names, flagged=m.flagged, u_rest=u_rest)
+    implied = implied_estimates(fit, params, position)
+    write_axis_toml(args.out, _linear_record(args, fit, implied, params, m.digest,
+                                             str(args.data)))
     for line in describe_linear(fit, implied):
         print(line)
     return 0
@@ -500,22 +515,31 @@ def _linear_time(args: argparse.Namespace, names: list[str]) -> int:
 
 def _frequency(args: argparse.Namespace) -> int:
     from ..identify import write_axis_toml
+    from ..identify.linear import (
+        DEFAULT_FIT,
+        fit_linear_frequency,
+        implied_estimates,
+        read_frequency_response,
+    )
     from ..identify.linear import describe as describe_linear
-    from ..identify.linear import fit_linear_frequency, implied_parameters, read_frequency_response
 
-    if args.fit is not None and set(_names(args.fit)) - set(LINEAR_NAMES):
+    names = list(DEFAULT_FIT) if args.fit is None else _names(args.fit)
+    bad = [n for n in names if n not in LINEAR_NAMES]
+    if bad:
         raise UsageError(f"--frequency-response fits eq. (8)'s {', '.join(LINEAR_NAMES)}; "
                          f"got --fit {args.fit}")
+    if not 0.0 < args.start < 1.0:
+        raise ParameterError(f"--start must be a fraction of the stroke in (0, 1), got "
+                             f"{args.start!r}")
     params = params_from_args(args)
-    fit_delay = args.fit is None or "delay" in _names(args.fit)
-    w, h = read_frequency_response(args.frequency_response)
-    _say(args, f"fitting eq. (8) to {w.size} frequency points")
-    fit = fit_linear_frequency(w, h, params=params, fit_delay=fit_delay)
     position = args.start * params.cylinder.stroke
-    implied = implied_parameters(fit, params, position)
-    text = _linear_record(args, fit, implied, params, sha256_file(args.frequency_response),
-                          str(args.frequency_response))
-    write_axis_toml(args.out, text)
+    w, h = read_frequency_response(args.frequency_response)
+    _say(args, f"fitting eq. (8)'s {', '.join(names)} to {w.size} frequency points")
+    fit = fit_linear_frequency(w, h, params=params, position=position, fit=names)
+    implied = implied_estimates(fit, params, position)
+    write_axis_toml(args.out, _linear_record(args, fit, implied, params,
+                                             "sha256:" + sha256_file(args.frequency_response),
+                                             str(args.frequency_response)))
     for line in describe_linear(fit, implied):
         print(line)
     return 0

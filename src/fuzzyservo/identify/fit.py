@@ -53,6 +53,7 @@ __all__ = [
     "FitSettings",
     "Identification",
     "ModelRunner",
+    "check_names",
     "default_bounds",
     "identify",
     "noise_level",
@@ -358,6 +359,7 @@ class _Problem:
         self.used = used
         self.sigma = sigma
         self._cache: tuple[bytes, FloatArray] | None = None
+        self.tick: Callable[[float], None] | None = None  #: told each new cost
         self.zlo = self.to_z(lo)
         self.zhi = self.to_z(hi)
 
@@ -388,6 +390,8 @@ class _Problem:
             return self._cache[1]
         res = self.weighted(self.runner.run(self.to_theta(z)))
         self._cache = (key, res)
+        if self.tick is not None:
+            self.tick(0.5 * float(res @ res))
         return res
 
     def jacobian(self, z: FloatArray) -> FloatArray:
@@ -489,7 +493,9 @@ def identify(
     settings : FitSettings, optional
         Starts, seed, bootstrap, threads.
     progress : callable, optional
-        ``progress(stage, done, total)``: called as starts and bootstrap refits finish.
+        ``progress(stage, done, total)``: called as starts and bootstrap refits finish
+        (``stage`` "starts" or "bootstrap"), and with ``total`` 0 at every new cost of the
+        search (``stage`` names the search and the cost, ``done`` counts the model runs).
     resume : array (k, p), optional
         The first k bootstrap estimates of an interrupted run with the same data and
         settings [SI]: they are kept and the bootstrap goes on from refit k (each refit draws
@@ -589,12 +595,20 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
                          f"no equilibrium at {runner.position:.6g} m or a divergence; check "
                          f"the parameter set and the data's position")
     prob = _Problem(runner, lo, hi, chans, data, used, sigma)
+    stage = ["start 1"]
+
+    def tick(cost: float) -> None:
+        if progress is not None:
+            progress(f"{stage[0]}: cost {cost:.6g}", runner.n_runs, 0)
+
+    prob.tick = tick
     rng = np.random.default_rng([cfg.seed, 27])
     z_starts = [prob.to_z(theta_start)]
     for _ in range(cfg.starts - 1):
         z_starts.append(prob.zlo + rng.random(len(names)) * (prob.zhi - prob.zlo))
     results = []
     for i, z0 in enumerate(z_starts):
+        stage[0] = f"start {i + 1}/{len(z_starts)}"
         results.append(_solve(prob, z0, cfg.max_nfev))
         if progress is not None:
             progress("starts", i + 1, len(z_starts))
@@ -620,6 +634,8 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
                 res = fitted[c][used] - data[c][used]
                 sigma[c] = max(float(np.sqrt(np.mean(res**2))), 1e-12 * sigma[c], 1e-300)
             prob = _Problem(runner, lo, hi, chans, data, used, sigma)
+            stage[0] = "re-weighted"
+            prob.tick = tick
             z_best, _ = _solve(prob, z_best, cfg.max_nfev)
             th_best = prob.to_theta(z_best)
     cov_z, s2, null = _covariance(prob, z_best)
