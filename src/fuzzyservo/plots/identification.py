@@ -242,9 +242,12 @@ def _estimates_axis(ax: Any, d: IdentificationData) -> None:
         ax.errorbar([row.ratio], [y], xerr=[[row.half_width], [row.half_width]], fmt="o",
                     color=colour, ms=5, capsize=4, lw=1.4,
                     label="estimate ± 2 SE (in % of it)" if y == ys[0] else None)
-        ext += [row.ratio - row.half_width, row.ratio + row.half_width]
-        rel = 100.0 * row.half_width / abs(row.ratio) if row.ratio != 0.0 else math.nan
-        ax.annotate(f"±{rel:.2g} %", (row.ratio, y), xytext=(0.0, 6.0),
+        ext.append(row.ratio)
+        rel = 100.0 * row.half_width / abs(row.ratio) if row.ratio != 0.0 else math.inf
+        if rel <= 100.0:  # a wider bar runs off the axis (its size is written above it)
+            ext += [row.ratio - row.half_width, row.ratio + row.half_width]
+        ax.annotate(f"±{rel:.2g} %" if rel < 100.0 else f"±{rel:.0f} %", (row.ratio, y),
+                    xytext=(0.0, 6.0),
                     textcoords="offset points", ha="center", va="bottom", fontsize=7.5,
                     color=colour)
         if row.interval is not None:
@@ -253,7 +256,7 @@ def _estimates_axis(ax: Any, d: IdentificationData) -> None:
                     solid_capstyle="butt",
                     label=f"bootstrap {d.level:.0%} interval" if not boot_drawn else None)
             boot_drawn = True
-            ext += [lo, hi]
+            ext += [lo, hi] if hi - lo <= 2.0 * abs(row.ratio) else []
     ax.axvline(1.0, color="0.3", lw=0.8, ls="--", label="start value")
     finite = [e for e in ext if math.isfinite(e)]
     lo, hi = min(finite), max(finite)
