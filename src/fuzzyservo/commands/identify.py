@@ -327,7 +327,7 @@ def _fields(args: argparse.Namespace, names: list[str]) -> int:
     text = render_axis_toml(ident, data=str(args.data), digest=m.digest,
                             command=_command(args), base_set=set_name(args),
                             version=__version__)
-    _write_outputs(args, ident, text)
+    _write_outputs(args, ident, text, m.digest)
     partial.unlink(missing_ok=True)
     for line in describe(ident):
         print(line)
@@ -395,7 +395,8 @@ def _save_partial(path: Path, key: str, done: Any) -> None:
         np.savez(fh, key=np.array(key), done=np.asarray(done, dtype=np.float64))
 
 
-def _write_outputs(args: argparse.Namespace, ident: Any, text: str) -> None:
+def _write_outputs(args: argparse.Namespace, ident: Any, text: str, digest: str) -> None:
+    """The figure, the page, then the parameter file (each written atomically)."""
     from ..identify import write_axis_toml
 
     if args.plot is not None:
@@ -405,7 +406,10 @@ def _write_outputs(args: argparse.Namespace, ident: Any, text: str) -> None:
     if args.html is not None:
         from ..identify.report import write_report
 
-        write_report(ident, args.html, command=_command(args), data=str(args.data))
+        png = args.plot if args.plot is not None and args.plot.suffix.lower() == ".png" \
+            else None
+        write_report(ident, args.html, command=_command(args), data=str(args.data),
+                     digest=digest, figure_path=png)
     write_axis_toml(args.out, text)
 
 

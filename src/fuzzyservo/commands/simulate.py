@@ -104,6 +104,10 @@ def register(subparsers: Any) -> None:
                          "constant, or a CSV with columns t, u (a sequence sampled every "
                          "--ts, e.g. what 'fuzzyservo identify --design' writes; its length "
                          "is the default --duration)")
+    ol.add_argument("--pressure-noise-std", type=float, default=0.0, metavar="PA",
+                    help="open loop: noise standard deviation added to the chamber pressures "
+                         "written (p_f, p_n then read as logged by transducers) [Pa] "
+                         "(default 0; --noise-std adds the position's to y)")
     ol.add_argument("--method", choices=("rk4", "solve_ivp"), default="rk4",
                     help="open loop on the nonlinear plant: the compiled loop (default) or "
                          "scipy's solve_ivp (DOP853), the reference")
@@ -113,6 +117,28 @@ def register(subparsers: Any) -> None:
                          f"(default {MAX_RHS_EVALUATIONS:g}; a stiff model can need millions)")
     add_plant_arguments(parser)
     parser.set_defaults(handler=run)
+
+
+def _logged(result: Any, noise_std: float, pressure_noise_std: float, seed: int) -> Any:
+    """The open-loop run as transducers would log it: seeded white noise of ``noise_std`` [m]
+    on the position y, then of ``pressure_noise_std`` [Pa] on the chamber pressures (states
+    p_f, p_n, when the plant has them)."""
+    if noise_std == 0.0 and pressure_noise_std == 0.0:
+        return result
+    from dataclasses import replace
+
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    y = result.y + rng.normal(0.0, noise_std, result.y.size) if noise_std else result.y
+    states = result.states
+    if pressure_noise_std:
+        states = states.copy()
+        for name in ("p_f", "p_n"):
+            if name in result.state_names:
+                j = result.state_names.index(name)
+                states[:, j] += rng.normal(0.0, pressure_noise_std, states.shape[0])
+    return replace(result, y=y, states=states)
 
 
 def _open_loop_command(text: str, ts: float | None) -> tuple[Any, float, float | None]:
@@ -366,9 +392,10 @@ def run(args: argparse.Namespace) -> int:
         if args.reference is not None or args.load_force:
             raise InputError("--reference and --load-force belong to the closed loop; the "
                              "open loop applies --command")
-        if not (math.isfinite(args.noise_std) and args.noise_std >= 0.0):
-            raise ParameterError(f"--noise-std must be finite and >= 0 m, got "
-                                 f"{args.noise_std!r}")
+        for flag, value, unit in (("--noise-std", args.noise_std, "m"),
+                                  ("--pressure-noise-std", args.pressure_noise_std, "Pa")):
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ParameterError(f"{flag} must be finite and >= 0 {unit}, got {value!r}")
         command, ts, length = _open_loop_command(args.command, args.ts)
         if args.duration is None and length is not None:
             args.duration = length
@@ -390,17 +417,13 @@ def run(args: argparse.Namespace) -> int:
             result: Any = simulate_open_loop(
                 plant, command, duration=run_.duration, dt=ts, delay=run_.delay,
                 method=args.method, progress=progress, max_rhs_evals=args.max_evaluations)
-        if args.noise_std > 0.0:  # the transducer's noise on the logged position, seeded
-            from dataclasses import replace
-
-            import numpy as np
-
-            rng = np.random.default_rng(args.seed)
-            result = replace(result, y=result.y + rng.normal(0.0, args.noise_std,
-                                                             result.y.size))
+        result = _logged(result, args.noise_std, args.pressure_noise_std, args.seed)
         shown = f"{command:g}" if isinstance(command, float) else str(args.command)
         title = f"open loop, u = {shown}, {run_.plant} plant"
     else:
+        if args.pressure_noise_std:
+            raise InputError("--pressure-noise-std belongs to the open loop (--open-loop); a "
+                             "closed loop takes the position's noise (--noise-std)")
         closed = closed_loop(args)
         result, run_, title = closed.result, closed.settings, closed.title
         extra_notes = list(closed.notes)

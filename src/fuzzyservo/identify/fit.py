@@ -352,6 +352,8 @@ class _Problem:
                  channels: tuple[str, ...], data: dict[str, FloatArray], used: FloatArray,
                  sigma: dict[str, float]) -> None:
         self.runner = runner
+        #: open loop: compare the position up to a constant (see :func:`identify`)
+        self.offset = runner.controller is None
         self.log = lo > 0.0
         self.scale = np.where(self.log, 1.0, np.maximum(np.abs(hi), 1e-300))
         self.channels = channels
@@ -377,8 +379,12 @@ class _Problem:
         m = int(np.count_nonzero(self.used))
         if traces is None:
             return np.full(m * len(self.channels), _FAILED)
-        parts = [(traces[c][self.used] - self.data[c][self.used]) / self.sigma[c]
-                 for c in self.channels]
+        parts = []
+        for c in self.channels:
+            res = traces[c][self.used] - self.data[c][self.used]
+            if c == "y" and self.offset:  # the start position's error, profiled out
+                res = res - float(np.mean(res))
+            parts.append(res / self.sigma[c])
         res = np.concatenate(parts)
         if not np.all(np.abs(res) < _FAILED * 1e3):  # a run gone far off: as a failure
             return np.full(res.size, _FAILED)
@@ -437,7 +443,7 @@ def _covariance(problem: _Problem, z: FloatArray) -> tuple[FloatArray, float, Fl
     f = problem.residuals(z)
     jac = problem.jacobian(z)
     m, p = jac.shape
-    dof = max(1, m - p)
+    dof = max(1, m - p - (1 if problem.offset and "y" in problem.channels else 0))
     s2 = float(f @ f) / dof
     w, v = np.linalg.eigh(jac.T @ jac)
     top = float(np.max(np.abs(w))) if w.size else 0.0
@@ -632,6 +638,8 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
         if fitted is not None:
             for c in chans:
                 res = fitted[c][used] - data[c][used]
+                if c == "y" and prob.offset:
+                    res = res - float(np.mean(res))
                 sigma[c] = max(float(np.sqrt(np.mean(res**2))), 1e-12 * sigma[c], 1e-300)
             prob = _Problem(runner, lo, hi, chans, data, used, sigma)
             stage[0] = "re-weighted"
@@ -654,6 +662,15 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
     fitted = runner.run(th_best)
     if fitted is None:  # the optimum was run above; a failure here would be a bug
         raise InputError("the identified model cannot be run")
+    offset = 0.0
+    if prob.offset and "y" in chans:
+        offset = float(np.mean(data["y"][used] - fitted["y"][used]))
+        fitted = dict(fitted, y=fitted["y"] + offset)
+        start_traces = dict(start_traces, y=start_traces["y"] + float(
+            np.mean(data["y"][used] - start_traces["y"][used])))
+        notes.append(f"the logged position is compared up to a constant, fitted with the "
+                     f"parameters: {offset * 1e6:+.3g} µm (the start position taken from the "
+                     f"noisy rest samples)")
     at_bound = [n for n, v, a, b in zip(names, th_best, lo, hi, strict=True)
                 if v <= a * (1 + 1e-6) or v >= b * (1 - 1e-6)]
     for n in at_bound:
