@@ -106,9 +106,11 @@ def test_warnings_each_on_its_own_line_and_notes(ident: Identification) -> None:
     assert "<script" not in page
 
 
-def test_no_warning_is_said(page: str) -> None:
+def test_no_warning_is_said(ident: Identification, page: str) -> None:
+    assert not ident.warnings
     assert "None: the data determine every fitted parameter." in page
-    assert "<li>" not in page
+    items = re.findall(r"<li>(.*?)</li>", page)
+    assert [html.unescape(i) for i in items] == list(ident.notes)  # the notes only
 
 
 def test_outside_text_is_escaped_and_the_digest_is_the_files(ident: Identification,
