@@ -366,7 +366,59 @@ def _fmu(name: str, identifier: str) -> Check:
     return check
 
 
+def _design(d: Path, out: str) -> None:
+    cols = read_run_csv(d / "design.csv", required=("t", "u"))
+    # "55 s at 1 kHz": the design's length and rate, as printed
+    assert 50.0 <= cols.t[-1] <= 60.0 and abs(cols.t[1] - cols.t[0] - 1e-3) < 1e-12
+    assert "log at least" in out
+
+
+def _rig(d: Path, out: str) -> None:
+    cols = read_run_csv(d / "rig.csv", required=("t", "u", "y", "p_f", "p_n"))
+    assert cols.t.size > 50_000
+
+
+#: The rig's hidden parameters (README, "Your own axis").
+_TRUTH = {"load.mass": 26000.0, "fluid.oil_bulk_modulus": 1.2e9, "valve.omega_v": 600.0}
+
+
+def _identified(d: Path, out: str) -> None:
+    import tomllib
+
+    rec = tomllib.loads((d / "axis.toml").read_text())["identification"]
+    # "each within two standard errors of the truth"
+    for name, est, se in zip(rec["fitted"], rec["estimate"], rec["std_error"], strict=True):
+        assert abs(est - _TRUTH[name]) <= 2 * se, (name, est, se)
+    assert rec["data_digest"].startswith("sha256:") and not rec["warnings"]
+    assert (d / "fit.png").stat().st_size > 0
+    assert "<h2>Estimates" in (d / "fit.html").read_text(encoding="utf-8")
+
+
+def _quick_tuned(name: str) -> Check:
+    def check(d: Path, out: str) -> None:
+        t = read_gains_toml(d / name)
+        assert t.controller == "stfpi" and t.feasible and t.metrics["overshoot"] <= 10.0
+    return check
+
+
+def _nominal_on_truth(d: Path, out: str) -> None:
+    m = printed_metrics(out)  # "14.0 % (the limit was 10 %) | not settled in 3 s"
+    assert m["overshoot"] > 10.0 and m["settling_time"] != m["settling_time"]
+
+
+def _identified_on_truth(d: Path, out: str) -> None:
+    m = printed_metrics(out)  # "6.3 % | 1.8 s"
+    assert m["overshoot"] <= 10.0 and m["settling_time"] < 3.0
+
+
 CHECKS: dict[str, Check] = {
+    "fuzzyservo identify --design --out design.csv": _design,
+    "--pressure-noise-std 2e4 --seed 1 --out rig.csv": _rig,
+    "fuzzyservo identify rig.csv": _identified,
+    "--out nominal-stfpi.toml": _quick_tuned("nominal-stfpi.toml"),
+    "--params axis.toml --out axis-stfpi.toml": _quick_tuned("axis-stfpi.toml"),
+    "fuzzyservo simulate --gains nominal-stfpi.toml": _nominal_on_truth,
+    "fuzzyservo simulate --gains axis-stfpi.toml": _identified_on_truth,
     "fuzzyservo export c --gains": _export_c,
     "fuzzyservo export st --gains": _export_st,
     "fuzzyservo simulate --duration 2 --gains": _recorded,
@@ -396,7 +448,7 @@ CHECKS: dict[str, Check] = {
     "--du-system du.fis": _simulate_du_file,
     "fuzzyservo tune --controller pid --plant linear": _tune_pid,
     "fuzzyservo simulate --gains pid.toml --metrics": _simulate_pid_file,
-    "fuzzyservo tune --controller stfpi": _tune_stfpi,
+    "fuzzyservo tune --controller stfpi --plant linear": _tune_stfpi,
     "fuzzyservo tune --controller pid2": _tune_pid2,
     "fuzzyservo app": _app,
     "fuzzyservo bode --gains src/fuzzyservo/data/gains/linear-stfpi.toml": _bode,
@@ -430,7 +482,7 @@ def test_readme_has_the_two_commands_first() -> None:
 
 #: Sections whose blocks build on each other (a file one writes, the next compiles): before a
 #: block runs, the blocks above it in its section run in the same scratch folder.
-CHAINED = {"To hardware", "Robustness sweeps"}
+CHAINED = {"To hardware", "Robustness sweeps", "Your own axis"}
 
 
 def _source_file(block: Block) -> str:
