@@ -14,7 +14,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ORDER = ["compile.py", "fuzzy_engine.py", "fuzzy_files.py", "plant.py", "closed_loop.py",
          "tuning.py", "csv_write.py", "export_c.py", "sweep.py", "app_latency.py",
-         "reproduce_time.py"]
+         "reproduce_time.py", "identify.py"]
 
 
 def main() -> int:
