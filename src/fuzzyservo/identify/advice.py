@@ -32,20 +32,33 @@ def _family(name: str) -> str:
     return name.split(".")[0]
 
 
-def remedy(names: Sequence[str], *, pressures: bool, omega_0: float, omega_v: float) -> str:
-    """The experiment that would tell ``names`` apart (or identify the one named)."""
+def remedy(names: Sequence[str], *, pressures: bool, omega_0: float, omega_v: float,
+           excited: float = 0.0) -> str:
+    """The experiment that would tell ``names`` apart (or identify the one named); ``excited``
+    is the band the data's excitation already covers [Hz] (99 % of its power below it), so
+    that no excitation the data already have is suggested."""
     fams = {_family(n) for n in names}
     f_h = omega_0 / (2.0 * math.pi)
     f_v = omega_v / (2.0 * math.pi)
+    more = ("log longer or with less noise (the standard errors shrink as one over the square "
+            "root of the samples)")
     if fams & {"stiffness", "inertia"} and len(fams & {"stiffness", "inertia"}) == len(fams):
         if not pressures:
-            return ("log the chamber pressures (p_f, p_n) or excite above the hydraulic natural "
-                    f"frequency ({f_h:.3g} Hz)")
-        return (f"excite above the hydraulic natural frequency ({f_h:.3g} Hz): a chirp to "
-                f"{2 * f_h:.3g} Hz (fuzzyservo identify --design)")
+            return ("log the chamber pressures (p_f, p_n)" + (
+                f" or excite above the hydraulic natural frequency ({f_h:.3g} Hz)"
+                if excited < 1.5 * f_h else ""))
+        if excited < 1.5 * f_h:
+            return (f"excite above the hydraulic natural frequency ({f_h:.3g} Hz; the data "
+                    f"reach {excited:.3g} Hz): a chirp to {2 * f_h:.3g} Hz (fuzzyservo "
+                    f"identify --design)")
+        return more
     if "valve" in fams:
-        return (f"excite up to the valve's bandwidth ({f_v:.3g} Hz) with pressures logged at "
-                f"{max(1000.0, 10 * f_v):.0f} Hz or more, or take omega_v from the datasheet")
+        if excited < 0.5 * f_v:
+            return (f"excite up to the valve's bandwidth ({f_v:.3g} Hz; the data reach "
+                    f"{excited:.3g} Hz) with pressures logged at "
+                    f"{max(1000.0, 10 * f_v):.0f} Hz or more (identify --design --f-max), or "
+                    f"take omega_v from the datasheet")
+        return more + ", or take the valve's dynamics from its datasheet"
     if "friction" in fams:
         return ("move at several constant speeds of both signs (slow ramps), so friction and "
                 "viscous damping act at different velocities")
@@ -55,34 +68,44 @@ def remedy(names: Sequence[str], *, pressures: bool, omega_0: float, omega_v: fl
     if "gain" in fams:
         return ("log moves at several command amplitudes of both signs (the flow gain is the "
                 "slope of velocity against command)")
-    return ("excite more: steps of both signs and a chirp above the hydraulic natural "
-            "frequency (fuzzyservo identify --design)")
+    if excited < 1.5 * f_h:
+        return ("excite more: steps of both signs and a chirp above the hydraulic natural "
+                f"frequency ({f_h:.3g} Hz; fuzzyservo identify --design)")
+    return more
 
 
 def identifiability_warnings(names: Sequence[str], estimate: FloatArray, std_error: FloatArray,
                              correlation: FloatArray, *, channels: Sequence[str],
-                             omega_0: float, omega_v: float) -> list[str]:
+                             omega_0: float, omega_v: float,
+                             excited: float = 0.0) -> list[str]:
     """One line per parameter the data do not identify (standard error larger than the
     estimate) and per pair they do not separate (|correlation| > :data:`CORRELATION_LIMIT`),
-    each naming the experiment that would."""
+    each naming the experiment that would (:func:`remedy`; ``omega_0``, ``omega_v`` [rad/s]
+    of the identified axis, ``excited`` the band the data's excitation covers [Hz]). A pair's
+    line gives both standard errors: they already include the correlation, so small ones mean
+    the pair is determined all the same."""
     pressures = any(c in channels for c in ("p_f", "p_n"))
     out: list[str] = []
     for i, n in enumerate(names):
         est, se = float(estimate[i]), float(std_error[i])
         if not math.isfinite(se) or se > abs(est):
+            how = remedy([n], pressures=pressures, omega_0=omega_0, omega_v=omega_v,
+                         excited=excited)
             out.append(f"{n} is not identifiable from these data ({est:.4g} ± {se:.2g}, the "
-                       f"standard error exceeds the estimate): "
-                       f"{remedy([n], pressures=pressures, omega_0=omega_0, omega_v=omega_v)}")
+                       f"standard error exceeds the estimate): {how}")
     p = len(names)
     for i in range(p):
         for j in range(i + 1, p):
             r = float(correlation[i, j])
             if abs(r) > CORRELATION_LIMIT:
                 src = "position and pressures" if pressures else "position alone"
+                rel = [float(std_error[k]) / abs(float(estimate[k])) * 100.0
+                       if float(estimate[k]) else math.inf for k in (i, j)]
                 out.append(f"{names[i]} and {names[j]} are not separable from {src} "
-                           f"(correlation {r:+.3f}): "
+                           f"(correlation {r:+.3f}; standard errors {rel[0]:.2g} % and "
+                           f"{rel[1]:.2g} %, which include it): "
                            + remedy([names[i], names[j]], pressures=pressures,
-                                    omega_0=omega_0, omega_v=omega_v))
+                                    omega_0=omega_0, omega_v=omega_v, excited=excited))
     return out
 
 

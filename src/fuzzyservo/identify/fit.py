@@ -19,8 +19,9 @@ The fit (docs/identify.md):
    (iteratively re-weighted least squares, so a channel the model cannot follow as well does
    not dominate).
 3. Starts: the parameter set's values, then ``starts - 1`` seeded draws inside the bounds
-   (log-uniform); scipy's bounded trust-region reflective least squares from each, the best
-   kept and the spread of the others reported.
+   (log-uniform); a bounded Levenberg-Marquardt search from each
+   (:mod:`fuzzyservo.identify.lsq`: no BLAS or LAPACK, so the estimates are the same bits on
+   every machine), the best kept and the spread of the others reported.
 4. Uncertainty: the covariance s^2 (J^T J)^-1 at the optimum (s^2 the reduced chi-square),
    standard errors mapped back to SI by the delta method, the correlation matrix; with
    ``bootstrap = N``, percentile intervals from N refits to the fitted traces plus moving
@@ -46,6 +47,7 @@ from ..plant.params import allowed_names, field_unit
 from ..registry import build_plant, plant_kind
 from ..sim.closed_loop import run_loop
 from ..sim.references import reference_rates
+from .lsq import covariance, levenberg_marquardt, sum_of_squares, total
 
 __all__ = [
     "CHANNELS",
@@ -93,7 +95,7 @@ class FitSettings:
     level : float
         Coverage of the bootstrap's percentile intervals, in (0, 1) [1].
     max_nfev : int
-        Most iterations (function evaluations of scipy's least_squares) per search.
+        Most evaluations of the residuals per search.
     reweight : bool
         Re-weight the channels by their residual RMS and refit (step 2 of the module's list).
     workers : int or None
@@ -182,6 +184,19 @@ def noise_level(x: FloatArray) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
+def excited_band(x: FloatArray, dt: float, share: float = 0.99) -> float:
+    """The frequency below which ``share`` of the excitation's power lies [Hz] (the signal
+    less its mean; a periodogram, its cumulative sum in order)."""
+    if x.size < 4:
+        return 0.0
+    spec = np.abs(np.fft.rfft(x - total(x) / x.size)) ** 2
+    cum = np.cumsum(spec)
+    if cum[-1] <= 0.0:
+        return 0.0
+    k = int(np.searchsorted(cum, share * cum[-1]))
+    return float(k / (x.size * dt))
+
+
 def check_names(names: Sequence[str]) -> tuple[str, ...]:
     """The fitted field names, checked: known, each once, at least one."""
     allowed = allowed_names()
@@ -255,7 +270,7 @@ class ModelRunner:
         self.t = np.ascontiguousarray(measurement.t, dtype=np.float64)
         self.dt = float(measurement.dt)
         rest = max(1, int(getattr(measurement, "rest", 1)))
-        self.position = float(np.mean(measurement.y[:rest]))
+        self.position = total(np.asarray(measurement.y[:rest], dtype=np.float64)) / rest
         stroke = base.cylinder.stroke
         if not 0.0 < self.position < stroke:
             raise InputError(
@@ -267,7 +282,7 @@ class ModelRunner:
                 raise InputError("open-loop identification needs the logged command (a column "
                                  "u); for closed-loop data name the controller (--controller, "
                                  "--gains) and log the reference r")
-            self.u_rest = float(np.mean(measurement.u[:rest]))
+            self.u_rest = total(np.asarray(measurement.u[:rest], dtype=np.float64)) / rest
         else:
             if measurement.r is None:
                 raise InputError("closed-loop identification needs the logged reference (a "
@@ -383,7 +398,7 @@ class _Problem:
         for c in self.channels:
             res = traces[c][self.used] - self.data[c][self.used]
             if c == "y" and self.offset:  # the start position's error, profiled out
-                res = res - float(np.mean(res))
+                res = res - total(res) / res.size
             parts.append(res / self.sigma[c])
         res = np.concatenate(parts)
         if not np.all(np.abs(res) < _FAILED * 1e3):  # a run gone far off: as a failure
@@ -397,7 +412,7 @@ class _Problem:
         res = self.weighted(self.runner.run(self.to_theta(z)))
         self._cache = (key, res)
         if self.tick is not None:
-            self.tick(0.5 * float(res @ res))
+            self.tick(0.5 * sum_of_squares(res))
         return res
 
     def jacobian(self, z: FloatArray) -> FloatArray:
@@ -427,30 +442,23 @@ class _Problem:
 
 
 def _solve(problem: _Problem, z0: FloatArray, max_nfev: int) -> tuple[FloatArray, float]:
-    from scipy.optimize import least_squares
-
+    """One bounded search from ``z0`` (:func:`fuzzyservo.identify.lsq.levenberg_marquardt`:
+    no BLAS or LAPACK, the same bits on every machine)."""
     z0 = np.clip(z0, problem.zlo, problem.zhi)
-    sol = least_squares(problem.residuals, z0, jac=problem.jacobian,
-                        bounds=(problem.zlo, problem.zhi), method="trf", x_scale=1.0,
-                        ftol=1e-10, xtol=1e-10, gtol=1e-10, max_nfev=max_nfev)
+    sol = levenberg_marquardt(problem.residuals, problem.jacobian, z0, problem.zlo,
+                              problem.zhi, max_nfev=max_nfev, ftol=1e-10, xtol=1e-10)
     return np.asarray(sol.x, dtype=np.float64), float(sol.cost)
 
 
 def _covariance(problem: _Problem, z: FloatArray) -> tuple[FloatArray, float, FloatArray]:
-    """Covariance of z, s² (JᵀJ)⁻¹, the reduced chi-square s², and the unit vectors of the
-    directions the data do not determine (rows; JᵀJ's eigenvalues below 1e-12 of the
-    largest): along them the variance is unbounded."""
+    """Covariance of z, s² (JᵀJ)⁺, the reduced chi-square s², and the unit vectors of the
+    directions the data do not determine (rows): along them the variance is unbounded
+    (:func:`fuzzyservo.identify.lsq.covariance`)."""
     f = problem.residuals(z)
     jac = problem.jacobian(z)
     m, p = jac.shape
     dof = max(1, m - p - (1 if problem.offset and "y" in problem.channels else 0))
-    s2 = float(f @ f) / dof
-    w, v = np.linalg.eigh(jac.T @ jac)
-    top = float(np.max(np.abs(w))) if w.size else 0.0
-    null = w <= 1e-12 * top if top > 0.0 else np.ones(p, dtype=bool)
-    inv = np.where(null, 0.0, 1.0 / np.where(null, 1.0, w))
-    cov = (v * inv) @ v.T * s2
-    return cov, s2, v[:, null].T
+    return covariance(jac, f, dof)
 
 
 def identify(
@@ -639,8 +647,9 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
             for c in chans:
                 res = fitted[c][used] - data[c][used]
                 if c == "y" and prob.offset:
-                    res = res - float(np.mean(res))
-                sigma[c] = max(float(np.sqrt(np.mean(res**2))), 1e-12 * sigma[c], 1e-300)
+                    res = res - total(res) / res.size
+                sigma[c] = max(math.sqrt(sum_of_squares(res) / res.size), 1e-12 * sigma[c],
+                               1e-300)
             prob = _Problem(runner, lo, hi, chans, data, used, sigma)
             stage[0] = "re-weighted"
             prob.tick = tick
@@ -664,15 +673,15 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
         raise InputError("the identified model cannot be run")
     offset = 0.0
     if prob.offset and "y" in chans:
-        offset = float(np.mean(data["y"][used] - fitted["y"][used]))
+        offset = total(data["y"][used] - fitted["y"][used]) / int(used.sum())
         fitted = dict(fitted, y=fitted["y"] + offset)
-        start_traces = dict(start_traces, y=start_traces["y"] + float(
-            np.mean(data["y"][used] - start_traces["y"][used])))
+        start_traces = dict(start_traces, y=start_traces["y"] + total(
+            data["y"][used] - start_traces["y"][used]) / int(used.sum()))
         notes.append(f"the logged position is compared up to a constant, fitted with the "
                      f"parameters: {offset * 1e6:+.3g} µm (the start position taken from the "
                      f"noisy rest samples)")
     at_bound = [n for n, v, a, b in zip(names, th_best, lo, hi, strict=True)
-                if v <= a * (1 + 1e-6) or v >= b * (1 - 1e-6)]
+                if v <= a + 1e-6 * (b - a) or v >= b - 1e-6 * (b - a)]
     for n in at_bound:
         notes.append(f"{n} ended on a bound of its search interval: widen --bounds {n}=LO:HI "
                      f"or check the model")
@@ -687,11 +696,20 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
         if not np.all(ok):
             notes.append(f"{int(np.count_nonzero(~ok))} of {cfg.bootstrap} bootstrap refits "
                          f"failed and were left out")
-    rms = {c: float(np.sqrt(np.mean((fitted[c][used] - data[c][used]) ** 2))) for c in chans}
+    rms = {c: math.sqrt(sum_of_squares(fitted[c][used] - data[c][used]) / int(used.sum()))
+           for c in chans}
     from .advice import identifiability_warnings
 
-    warns = identifiability_warnings(names, th_best, se, corr, channels=chans,
-                                     omega_0=lin.omega_0, omega_v=params.valve.omega_v)
+    identified = runner.params_at(th_best)
+    try:  # the advice speaks of the identified axis's frequencies
+        omega_0 = linearize(identified, runner.position).omega_0
+    except (FuzzyServoError, ValueError, ArithmeticError):
+        omega_0 = lin.omega_0
+    excitation = m.u if runner.controller is None else m.r
+    warns = identifiability_warnings(
+        names, th_best, se, corr, channels=chans, omega_0=omega_0,
+        omega_v=identified.valve.omega_v,
+        excited=excited_band(np.asarray(excitation, dtype=np.float64), runner.dt))
     return Identification(
         names=names, units=tuple(field_unit(n) for n in names), initial=theta0,
         estimate=th_best, std_error=se, correlation=corr, bounds=np.column_stack([lo, hi]),
@@ -747,7 +765,7 @@ def _bootstrap(prob: _Problem, runner: ModelRunner, fitted: dict[str, FloatArray
         try:
             z, _ = _solve(pb, z_best, cfg.max_nfev)
             out[i] = pb.to_theta(z)
-        except (ValueError, FloatingPointError, np.linalg.LinAlgError):
+        except (ValueError, ArithmeticError):
             pass
         if checkpoint is not None:
             checkpoint(out[:i + 1].copy())
