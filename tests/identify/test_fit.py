@@ -121,9 +121,49 @@ def test_a_parameter_the_data_cannot_see_is_flagged_with_the_experiment_to_run()
     res = identify(m, plant="nonlinear", params=BASE,
                    fit=["load.mass", "supply.ripple_frequency"],
                    settings=FitSettings(starts=1, max_nfev=5))
-    lines = [w for w in res.warnings if w.startswith("supply.ripple_frequency is not "
-                                                      "identifiable")]
-    assert len(lines) == 1 and ":" in lines[0]
+    lines = [w for w in res.warnings if w.startswith("supply.ripple_frequency does not act")]
+    assert len(lines) == 1 and "hold it at a known value" in lines[0]
+    assert res.std_error[1] == np.inf and np.isfinite(res.std_error[0])
+
+
+def test_two_moduli_in_series_are_determined_only_together():
+    # without hose, the oil's and the cylinder wall's moduli act only as the series
+    # combination 1/(1/b_oil + 1/b_wall): the data cannot tell them apart, at any noise
+    params = with_overrides(BASE, {"fluid.hose_volume": 0.0, "cylinder.dead_volume_f": 1e-3,
+                                   "cylinder.dead_volume_n": 1e-3})
+    m = _open_loop_data(params)
+    res = identify(m, plant="nonlinear", params=params,
+                   fit=["fluid.oil_bulk_modulus", "fluid.cylinder_wall_bulk_modulus"],
+                   settings=FitSettings(starts=1, max_nfev=8))
+    assert res.warnings == ("fluid.oil_bulk_modulus and fluid.cylinder_wall_bulk_modulus act "
+                            "on these data only together (a combination of them is "
+                            "determined, not each): fit one and hold the others at known "
+                            "values (a datasheet's)",)
+    assert np.all(res.std_error == np.inf)
+    # the series modulus they make is what the data fix: the start's, exactly
+    series = 1 / (1 / res.estimate[0] + 1 / res.estimate[1])
+    assert series == pytest.approx(params.fluid.cylinder_bulk_modulus, rel=1e-6)
+
+
+def test_the_warning_of_the_issue_for_position_alone():
+    from fuzzyservo.identify import identifiability_warnings
+
+    corr = np.array([[1.0, 0.97], [0.97, 1.0]])
+    lines = identifiability_warnings(["load.mass", "fluid.oil_bulk_modulus"],
+                                     np.array([1.5e4, 1.5e9]), np.array([300.0, 6e7]), corr,
+                                     channels=("y",), omega_0=19.6, omega_v=688.7,
+                                     excited=2.0)
+    assert lines == ["load.mass and fluid.oil_bulk_modulus are not separable from position "
+                     "alone (correlation +0.970; standard errors 2 % and 4 %, which include "
+                     "it): log the chamber pressures (p_f, p_n) or excite above the hydraulic "
+                     "natural frequency (3.12 Hz)"]
+    # with pressures logged and the band above omega_h covered, more of the same data
+    lines = identifiability_warnings(["load.mass", "fluid.oil_bulk_modulus"],
+                                     np.array([1.5e4, 1.5e9]), np.array([300.0, 6e7]), corr,
+                                     channels=("y", "p_f", "p_n"), omega_0=19.6,
+                                     omega_v=688.7, excited=80.0)
+    assert lines[0].endswith("log longer or with less noise (the standard errors shrink as "
+                             "one over the square root of the samples)")
 
 
 @pytest.mark.parametrize("kwargs, match", [

@@ -77,16 +77,33 @@ def remedy(names: Sequence[str], *, pressures: bool, omega_0: float, omega_v: fl
 def identifiability_warnings(names: Sequence[str], estimate: FloatArray, std_error: FloatArray,
                              correlation: FloatArray, *, channels: Sequence[str],
                              omega_0: float, omega_v: float,
-                             excited: float = 0.0) -> list[str]:
+                             excited: float = 0.0,
+                             undetermined: Sequence[Sequence[int]] = ()) -> list[str]:
     """One line per parameter the data do not identify (standard error larger than the
     estimate) and per pair they do not separate (|correlation| > :data:`CORRELATION_LIMIT`),
     each naming the experiment that would (:func:`remedy`; ``omega_0``, ``omega_v`` [rad/s]
     of the identified axis, ``excited`` the band the data's excitation covers [Hz]). A pair's
     line gives both standard errors: they already include the correlation, so small ones mean
-    the pair is determined all the same."""
+    the pair is determined all the same. ``undetermined`` lists groups of indices the data
+    determine only in combination (a direction along which nothing changes): one line per
+    group, which says to hold all but one of them, and no other line for them."""
     pressures = any(c in channels for c in ("p_f", "p_n"))
     out: list[str] = []
+    grouped: set[int] = set()
+    for group in undetermined:
+        members = [names[k] for k in group]
+        grouped.update(group)
+        if len(members) == 1:
+            out.append(f"{members[0]} does not act on these data at all (nothing the model "
+                       f"logs changes with it): hold it at a known value, or log a signal it "
+                       f"moves")
+        else:
+            out.append(f"{', '.join(members[:-1])} and {members[-1]} act on these data only "
+                       f"together (a combination of them is determined, not each): fit one "
+                       f"and hold the others at known values (a datasheet's)")
     for i, n in enumerate(names):
+        if i in grouped:
+            continue
         est, se = float(estimate[i]), float(std_error[i])
         if not math.isfinite(se) or se > abs(est):
             how = remedy([n], pressures=pressures, omega_0=omega_0, omega_v=omega_v,
@@ -96,6 +113,8 @@ def identifiability_warnings(names: Sequence[str], estimate: FloatArray, std_err
     p = len(names)
     for i in range(p):
         for j in range(i + 1, p):
+            if i in grouped or j in grouped:
+                continue
             r = float(correlation[i, j])
             if abs(r) > CORRELATION_LIMIT:
                 src = "position and pressures" if pressures else "position alone"

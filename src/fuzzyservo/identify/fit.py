@@ -375,6 +375,9 @@ class _Problem:
         self.data = data
         self.used = used
         self.sigma = sigma
+        #: a trace farther than this from the data is a run gone off (a failure) [SI]
+        self.far = {c: 1e6 * max(float(np.max(np.abs(data[c][used]))), 1e-300)
+                    for c in channels}
         self._cache: tuple[bytes, FloatArray] | None = None
         self.tick: Callable[[float], None] | None = None  #: told each new cost
         self.zlo = self.to_z(lo)
@@ -397,13 +400,12 @@ class _Problem:
         parts = []
         for c in self.channels:
             res = traces[c][self.used] - self.data[c][self.used]
+            if not bool(np.all(np.abs(res) <= self.far[c])):  # gone far off: a failure
+                return np.full(m * len(self.channels), _FAILED)
             if c == "y" and self.offset:  # the start position's error, profiled out
                 res = res - total(res) / res.size
             parts.append(res / self.sigma[c])
-        res = np.concatenate(parts)
-        if not np.all(np.abs(res) < _FAILED * 1e3):  # a run gone far off: as a failure
-            return np.full(res.size, _FAILED)
-        return res
+        return np.concatenate(parts)
 
     def residuals(self, z: FloatArray) -> FloatArray:
         key = np.asarray(z, dtype=np.float64).tobytes()
@@ -709,7 +711,9 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
     warns = identifiability_warnings(
         names, th_best, se, corr, channels=chans, omega_0=omega_0,
         omega_v=identified.valve.omega_v,
-        excited=excited_band(np.asarray(excitation, dtype=np.float64), runner.dt))
+        excited=excited_band(np.asarray(excitation, dtype=np.float64), runner.dt),
+        undetermined=[tuple(int(k) for k in np.flatnonzero(np.abs(vec) > 1e-6))
+                      for vec in null])
     return Identification(
         names=names, units=tuple(field_unit(n) for n in names), initial=theta0,
         estimate=th_best, std_error=se, correlation=corr, bounds=np.column_stack([lo, hi]),
