@@ -197,3 +197,19 @@ def test_bad_data_one_line_status_2(tmp_path: Path, capsys: pytest.CaptureFixtur
 
 def test_linear_names_agree_with_the_fit() -> None:
     assert cmd.LINEAR_NAMES == linear.LINEAR_NAMES
+
+
+def test_a_closed_loop_log_is_fitted_through_its_controller(tmp_path: Path) -> None:
+    gains = "kp=8,ki=1,kd=0.2"
+    log = tmp_path / "closed.csv"
+    assert main(["simulate", "--controller", "pid", "--gains", gains, "--reference",
+                 "multistep:0.2=0.05,1.5=-0.02", "--duration", "3", "--delay", "hose",
+                 "--param", f"load.mass={TRUE_MASS!r}", "--noise-std", "2e-5", "--seed", "4",
+                 "--out", str(log)]) == 0
+    axis = tmp_path / "axis.toml"
+    assert main(["identify", str(log), "--controller", "pid", "--gains", gains, "--fit",
+                 "load.mass", "--channels", "y", "--out", str(axis), "--quiet"]) == 0
+    rec = tomllib.loads(axis.read_text())["identification"]
+    assert rec["mode"] == "closed loop"
+    # the logged noise fed the real loop's controller, not the model's: still within 3 SE
+    assert abs(rec["estimate"][0] - TRUE_MASS) <= 3 * rec["std_error"][0]
