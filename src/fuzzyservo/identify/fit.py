@@ -107,7 +107,7 @@ class FitSettings:
     bootstrap: int = 0
     block: int | None = None
     level: float = 0.95
-    max_nfev: int = 60
+    max_nfev: int = 200
     reweight: bool = True
     workers: int | None = None
 
