@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import shlex
 import sys
 from collections.abc import Callable, Iterator
@@ -89,6 +90,12 @@ def register(subparsers: Any) -> None:
                           "the model's holding command (a valve's null offset is not read "
                           "as drift); 'none' drives the model with the logged command as it "
                           "is (default rest)")
+    fit.add_argument("--reference-rates", choices=("auto", "difference", "zero"),
+                     default="auto",
+                     help="closed loop, feed-forward laws (ffpd, smc): the reference's "
+                          "velocity and acceleration from differences of the logged samples, "
+                          "or zero (a step's exact rates); auto: zero when the reference is "
+                          "piecewise constant (default auto)")
     fit.add_argument("--starts", type=int, default=3, metavar="N",
                      help="local searches: the set's values, then seeded draws (default 3)")
     fit.add_argument("--seed", type=int, default=0, metavar="SEED",
@@ -234,6 +241,24 @@ def _progress(args: argparse.Namespace) -> Iterator[Callable[[str, int, int], No
             bar.close()
 
 
+def _channels(text: str) -> list[str]:
+    """``--channels``: signals to fit, each once, at least one."""
+    from ..identify import CHANNELS
+
+    out = [c.strip() for c in text.split(",") if c.strip()]
+    if not out:
+        raise UsageError(f"--channels names no signal; give one or more of "
+                         f"{', '.join(CHANNELS)}")
+    for c in out:
+        if c not in CHANNELS:
+            raise UsageError(f"--channels: unknown signal {c!r}; allowed: "
+                             f"{', '.join(CHANNELS)}")
+        if out.count(c) > 1:
+            raise UsageError(f"--channels names {c!r} twice (it would count twice); name each "
+                             f"signal once")
+    return out
+
+
 def _names(text: str | None) -> list[str]:
     if text is None or not text.strip():
         raise UsageError("identify needs --fit NAME[,NAME...] (e.g. --fit load.mass,"
@@ -242,26 +267,67 @@ def _names(text: str | None) -> list[str]:
     return [n.strip() for n in text.split(",") if n.strip()]
 
 
-def run(args: argparse.Namespace) -> int:
-    """Handler of ``fuzzyservo identify``."""
-    inputs = [p for p in (args.data, args.frequency_response) if p is not None]
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Every output path, before any work: writable, not an input, each a different file,
+    a figure's format known."""
+    inputs: list[Path] = [p for p in (args.data, args.frequency_response, args.param_file,
+                                      args.du_system, args.alpha_system) if p is not None]
+    if args.gains is not None and "=" not in args.gains:
+        inputs.append(Path(args.gains))
+    seen: dict[Path, str] = {}
     for option in ("out", "plot", "html"):
         path = getattr(args, option)
-        if path is not None:
-            check_output_path(path, option=f"--{option}", inputs=inputs)
+        if path is None:
+            continue
+        check_output_path(path, option=f"--{option}", inputs=inputs)
+        key = Path(path).resolve()
+        if key in seen:
+            raise UsageError(f"--{option} and --{seen[key]} name the same file "
+                             f"{str(path)!r}; give each output its own")
+        seen[key] = option
+    if args.plot is not None:
+        from ..plots import FIGURE_FORMATS
+
+        if args.plot.suffix.lower() not in FIGURE_FORMATS:
+            raise UsageError(f"--plot {str(args.plot)!r}: the file name must end in "
+                             f"{' or '.join(FIGURE_FORMATS)}")
+
+
+#: Options of the parameter fit that the eq. (8) fits and the designer do not take.
+_FIT_ONLY: tuple[tuple[str, Any, str], ...] = (
+             ("bootstrap", 0, "--bootstrap"), ("resume", False, "--resume"),
+             ("channels", None, "--channels"), ("bounds", [], "--bounds"),
+             ("controller", None, "--controller"), ("gains", None, "--gains"),
+             ("plot", None, "--plot"), ("html", None, "--html"), ("block", None, "--block"),
+             ("starts", 3, "--starts"))
+
+
+def _refuse_fit_only(args: argparse.Namespace, what: str) -> None:
+    given = [flag for name, default, flag in _FIT_ONLY if getattr(args, name) != default]
+    if given:
+        raise UsageError(f"{what} does not take {', '.join(given)} (options of the parameter "
+                         f"fit, --fit group.field,...)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Handler of ``fuzzyservo identify``."""
+    _check_outputs(args)
     if args.design:
         if args.data is not None or args.frequency_response is not None or args.fit:
             raise UsageError("--design writes an experiment; it takes no DATA.csv, "
                              "--frequency-response or --fit")
+        _refuse_fit_only(args, "--design")
         return _design(args)
     if args.frequency_response is not None:
         if args.data is not None:
             raise UsageError("give DATA.csv or --frequency-response FRF.csv, not both")
+        _refuse_fit_only(args, "--frequency-response")
         return _frequency(args)
     if args.data is None:
         raise UsageError("identify needs DATA.csv (or --design, or --frequency-response)")
     names = _names(args.fit)
     if any(n in LINEAR_NAMES for n in names):
+        _refuse_fit_only(args, f"--fit {','.join(names)} (eq. (8) directly)")
         return _linear_time(args, names)
     return _fields(args, names)
 
@@ -295,22 +361,25 @@ def _fields(args: argparse.Namespace, names: list[str]) -> int:
 
     check_names(names)  # the arguments first: one line before any file is read
     bounds = parse_bounds(args.bounds)
+    channels = None if args.channels is None else _channels(args.channels)
+    if not (math.isfinite(args.substep) and args.substep > 0.0):
+        raise ParameterError(f"--substep must be finite and > 0 s, got {args.substep!r}")
+    settings = FitSettings(starts=args.starts, seed=args.seed, bootstrap=args.bootstrap,
+                           block=args.block, level=args.level)
     params = params_from_args(args)
     closed = args.controller is not None or args.gains is not None
     m = _read(args, ("r",) if closed else ("u",))
     for note in m.notes:
         _say(args, f"data: {note}")
     controller = _controller(args, m.dt)
-    channels = None
-    if args.channels:
-        channels = [c.strip() for c in args.channels.split(",") if c.strip()]
-    settings = FitSettings(starts=args.starts, seed=args.seed, bootstrap=args.bootstrap,
-                           block=args.block, level=args.level)
     _say(args, f"fitting {', '.join(names)} on the {args.plant} model "
                f"({'closed' if closed else 'open'} loop, {m.t.size} samples at "
                f"{m.dt:g} s)")
     partial = partial_path(args.out)
     key = _run_key(args, m.digest)
+    if args.bootstrap and not args.resume and partial.exists():
+        raise InputError(f"{str(partial)!r} holds the refits of an interrupted bootstrap: add "
+                         f"--resume to go on from them, or delete the file to start over")
     resume = _load_partial(partial, key) if args.resume else None
     if resume is not None:
         _say(args, f"resuming: {resume.shape[0]} bootstrap refits kept from {partial}")
@@ -322,7 +391,8 @@ def _fields(args: argparse.Namespace, names: list[str]) -> int:
         ident = identify(m, plant=args.plant, params=params, fit=names,
                          bounds=bounds, controller=controller,
                          substep=args.substep, command_offset=args.command_offset,
-                         channels=channels, settings=settings, progress=progress,
+                         reference_rates=args.reference_rates, channels=channels,
+                         settings=settings, progress=progress,
                          resume=resume, checkpoint=save if args.bootstrap else None)
     text = render_axis_toml(ident, data=str(args.data), digest=m.digest,
                             command=_command(args), base_set=set_name(args),
@@ -348,9 +418,14 @@ def _run_key(args: argparse.Namespace, digest: str) -> str:
     import json
 
     opts = {k: str(v) for k, v in sorted(vars(args).items())
-            if k not in ("resume", "quiet", "handler", "argv")}
-    if args.param_file is not None:
-        opts["param_file_digest"] = sha256_file(args.param_file)
+            if k not in ("resume", "quiet", "handler", "argv", "out", "plot", "html")}
+    files = {"param_file": args.param_file, "du_system": args.du_system,
+             "alpha_system": args.alpha_system,
+             "gains": Path(args.gains) if args.gains is not None and "=" not in args.gains
+             else None}
+    for name, path in files.items():  # what the files hold, not only their names
+        if path is not None:
+            opts[f"{name}_digest"] = sha256_file(path)
     text = json.dumps({"data": digest, "options": opts, "version": __version__},
                       sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -508,7 +583,8 @@ def _linear_time(args: argparse.Namespace, names: list[str]) -> int:
     u_rest = float(m.u[:rest].mean())
     _say(args, f"fitting eq. (8)'s {', '.join(names)} ({m.t.size} samples at {m.dt:g} s)")
     fit = fit_linear_time(m.t, m.u, m.y, params=params, position=position, dt=m.dt,
-                          fit=names, flagged=m.flagged, u_rest=u_rest)
+                          fit=names, flagged=m.flagged, u_rest=u_rest,
+                          delay=params.delay.transport_delay)
     implied = implied_estimates(fit, params, position)
     write_axis_toml(args.out, _linear_record(args, fit, implied, params, m.digest,
                                              str(args.data)))
@@ -539,7 +615,8 @@ def _frequency(args: argparse.Namespace) -> int:
     position = args.start * params.cylinder.stroke
     w, h = read_frequency_response(args.frequency_response)
     _say(args, f"fitting eq. (8)'s {', '.join(names)} to {w.size} frequency points")
-    fit = fit_linear_frequency(w, h, params=params, position=position, fit=names)
+    fit = fit_linear_frequency(w, h, params=params, position=position, fit=names,
+                               delay=params.delay.transport_delay)
     implied = implied_estimates(fit, params, position)
     write_axis_toml(args.out, _linear_record(args, fit, implied, params,
                                              "sha256:" + sha256_file(args.frequency_response),

@@ -46,7 +46,7 @@ from ..plant import ServoParams, linearize, with_overrides
 from ..plant.params import allowed_names, field_unit
 from ..registry import build_plant, plant_kind
 from ..sim.closed_loop import run_loop
-from ..sim.references import reference_rates
+from ..sim.references import reference_rates as rates_of
 from .lsq import covariance, levenberg_marquardt, sum_of_squares, total
 
 __all__ = [
@@ -69,10 +69,6 @@ DEFAULT_STARTS = 3
 
 #: Relative step of the central differences in the fitted coordinates (log: 1e-5 relative).
 _FD_STEP = 1.0e-5
-
-#: Residual of a sample when the model cannot be run (invalid parameters, divergence): large,
-#: finite, so the trust region shrinks away from it.
-_FAILED = 1.0e3
 
 #: Fewest hydraulic periods (2 pi / omega_0 of the parameter set) the excited part must last.
 MIN_PERIODS = 3.0
@@ -251,12 +247,24 @@ class ModelRunner:
         does not read as a drift); ``none``: the logged command as it is.
     workers : int or None
         Threads running the model.
+    reference_rates : {"auto", "difference", "zero"}
+        Closed loop: the reference's velocity and acceleration the feed-forward laws (ffpd,
+        smc) get: differences of the logged samples, or zero (a step's exact rates: a
+        difference turns each jump into a spike the real controller never saw); ``auto``:
+        zero when the reference is piecewise constant (it changes on at most 1 % of the
+        samples), else differences.
     """
 
     def __init__(self, measurement: Any, plant: str, base: ServoParams, names: Sequence[str],
                  *, controller: Any = None, substep: float = 5.0e-4,
-                 command_offset: str = "rest", workers: int | None = None) -> None:
+                 command_offset: str = "rest", workers: int | None = None,
+                 reference_rates: str = "auto") -> None:
         plant_kind(plant)
+        if not (isinstance(substep, float | int) and math.isfinite(substep) and substep > 0.0):
+            raise ParameterError(f"substep must be finite and > 0 s, got {substep!r}")
+        if reference_rates not in ("auto", "difference", "zero"):
+            raise ParameterError(f"reference_rates must be 'auto', 'difference' or 'zero', "
+                                 f"got {reference_rates!r}")
         if command_offset not in ("rest", "none"):
             raise ParameterError(f"command_offset must be 'rest' or 'none', got "
                                  f"{command_offset!r}")
@@ -292,7 +300,12 @@ class ModelRunner:
                                      f"from the data's {self.dt!r} s")
             self.u_rest = 0.0
             r = np.ascontiguousarray(measurement.r, dtype=np.float64)
-            self.rates = reference_rates(r, self.t)
+            self.rates_rule = reference_rates
+            if reference_rates == "auto":  # steps (piecewise constant): the exact rates, 0
+                moving = int(np.count_nonzero(np.diff(r)))
+                self.rates_rule = "zero" if moving <= max(1, r.size // 100) else "difference"
+            self.rates = (rates_of(r, self.t) if self.rates_rule == "difference"
+                          else (np.zeros(r.size), np.zeros(r.size)))
         self.workers = workers or max(1, os.cpu_count() or 1)
         self.n_runs = 0
         self._pool: ThreadPoolExecutor | None = None
@@ -383,25 +396,30 @@ class _Problem:
         self.zlo = self.to_z(lo)
         self.zhi = self.to_z(hi)
 
+    # element by element with the C library's log and exp, as the compiled kernels use them
+    # (numpy's vector exp and log round differently on AVX-512 processors)
     def to_z(self, theta: FloatArray) -> FloatArray:
-        with np.errstate(divide="ignore"):
-            return np.where(self.log, np.log(np.maximum(theta, 1e-300)), theta / self.scale)
+        return np.array([math.log(max(float(v), 1e-300)) if lg else float(v) / float(sc)
+                         for v, lg, sc in zip(theta, self.log, self.scale, strict=True)])
 
     def to_theta(self, z: FloatArray) -> FloatArray:
-        return np.where(self.log, np.exp(z), z * self.scale)
+        return np.array([math.exp(float(v)) if lg else float(v) * float(sc)
+                         for v, lg, sc in zip(z, self.log, self.scale, strict=True)])
 
     def dtheta_dz(self, z: FloatArray) -> FloatArray:
-        return np.where(self.log, np.exp(z), self.scale)
+        return np.array([math.exp(float(v)) if lg else float(sc)
+                         for v, lg, sc in zip(z, self.log, self.scale, strict=True)])
 
-    def weighted(self, traces: dict[str, FloatArray] | None) -> FloatArray:
-        m = int(np.count_nonzero(self.used))
+    def weighted(self, traces: dict[str, FloatArray] | None) -> FloatArray | None:
+        """The weighted residuals of a run, or None for a run that failed or went far off
+        the data (the search refuses such a point: its cost is infinite)."""
         if traces is None:
-            return np.full(m * len(self.channels), _FAILED)
+            return None
         parts = []
         for c in self.channels:
             res = traces[c][self.used] - self.data[c][self.used]
-            if not bool(np.all(np.abs(res) <= self.far[c])):  # gone far off: a failure
-                return np.full(m * len(self.channels), _FAILED)
+            if not bool(np.all(np.abs(res) <= self.far[c])):
+                return None
             if c == "y" and self.offset:  # the start position's error, profiled out
                 res = res - total(res) / res.size
             parts.append(res / self.sigma[c])
@@ -411,7 +429,9 @@ class _Problem:
         key = np.asarray(z, dtype=np.float64).tobytes()
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
-        res = self.weighted(self.runner.run(self.to_theta(z)))
+        got = self.weighted(self.runner.run(self.to_theta(z)))
+        m = int(np.count_nonzero(self.used)) * len(self.channels)
+        res = np.full(m, np.inf) if got is None else got
         self._cache = (key, res)
         if self.tick is not None:
             self.tick(0.5 * sum_of_squares(res))
@@ -431,25 +451,26 @@ class _Problem:
         f0 = self.residuals(z)
         jac = np.empty((f0.size, p))
         for i in range(p):
-            a, b = runs[2 * i], runs[2 * i + 1]
+            a, b = self.weighted(runs[2 * i]), self.weighted(runs[2 * i + 1])
             if a is not None and b is not None:
-                jac[:, i] = (self.weighted(a) - self.weighted(b)) / (2.0 * h[i])
-            elif a is not None:
-                jac[:, i] = (self.weighted(a) - f0) / h[i]
+                jac[:, i] = (a - b) / (2.0 * h[i])
+            elif a is not None:  # one-sided where the other side cannot be run
+                jac[:, i] = (a - f0) / h[i]
             elif b is not None:
-                jac[:, i] = (f0 - self.weighted(b)) / h[i]
+                jac[:, i] = (f0 - b) / h[i]
             else:
                 jac[:, i] = 0.0
         return jac
 
 
-def _solve(problem: _Problem, z0: FloatArray, max_nfev: int) -> tuple[FloatArray, float]:
+def _solve(problem: _Problem, z0: FloatArray, max_nfev: int) -> tuple[FloatArray, float, str]:
     """One bounded search from ``z0`` (:func:`fuzzyservo.identify.lsq.levenberg_marquardt`:
-    no BLAS or LAPACK, the same bits on every machine)."""
+    no BLAS or LAPACK, the same bits on every machine): the end point, its cost and why the
+    search stopped."""
     z0 = np.clip(z0, problem.zlo, problem.zhi)
     sol = levenberg_marquardt(problem.residuals, problem.jacobian, z0, problem.zlo,
                               problem.zhi, max_nfev=max_nfev, ftol=1e-10, xtol=1e-10)
-    return np.asarray(sol.x, dtype=np.float64), float(sol.cost)
+    return np.asarray(sol.x, dtype=np.float64), float(sol.cost), sol.status
 
 
 def _covariance(problem: _Problem, z: FloatArray) -> tuple[FloatArray, float, FloatArray]:
@@ -473,6 +494,7 @@ def identify(
     controller: Any = None,
     substep: float = 5.0e-4,
     command_offset: str = "rest",
+    reference_rates: str = "auto",
     channels: Sequence[str] | None = None,
     settings: FitSettings | None = None,
     progress: Callable[[str, int, int], None] | None = None,
@@ -503,6 +525,8 @@ def identify(
         RK4 step bound of the nonlinear plant [s].
     command_offset : {"rest", "none"}
         See :class:`ModelRunner`.
+    reference_rates : {"auto", "difference", "zero"}
+        Closed loop: the reference's rates for feed-forward laws; see :class:`ModelRunner`.
     channels : sequence of str, optional
         Signals to compare (``y``, ``p_f``, ``p_n``); default every one logged that the model
         has.
@@ -527,7 +551,8 @@ def identify(
     Raises
     ------
     ParameterError
-        Unknown or repeated names, bad bounds, a start value outside its bounds, settings.
+        Unknown or repeated names or channels, bad bounds, a bad substep or option, bad
+        settings. (A starting value outside its bounds is moved onto the nearer bound.)
     InputError
         Data that cannot identify anything: no command or reference, a start position
         outside the stroke, too short for the model's dynamics, or a model that cannot be
@@ -536,7 +561,8 @@ def identify(
     cfg = settings or FitSettings()
     names = check_names(fit)
     runner = ModelRunner(measurement, plant, params, names, controller=controller,
-                         substep=substep, command_offset=command_offset, workers=cfg.workers)
+                         substep=substep, command_offset=command_offset, workers=cfg.workers,
+                         reference_rates=reference_rates)
     try:
         return _identify(measurement, runner, params, names, bounds or {}, channels, cfg,
                          progress, resume, checkpoint)
@@ -578,11 +604,20 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
         chans = have
     else:
         chans = tuple(channels)
+        if not chans:
+            raise ParameterError(f"channels names no signal; give one or more of "
+                                 f"{', '.join(have)}")
         for c in chans:
+            if chans.count(c) > 1:
+                raise ParameterError(f"channels names {c!r} twice (it would count twice); "
+                                     f"name each signal once")
             if c not in have:
                 raise InputError(f"cannot fit channel {c!r}: the data and the {runner.plant} "
                                  f"model have {', '.join(have)}")
     notes: list[str] = []
+    if runner.controller is not None and runner.controller.law.feedforward:
+        notes.append(f"the reference's rates for the feed-forward: {runner.rates_rule} "
+                     f"(--reference-rates)")
     if runner.plant == "linear" and any(getattr(m, c, None) is not None for c in ("p_f", "p_n")):
         notes.append("the linear plant (eq. 8) has no chamber pressures: fitted on the position "
                      "only (use --plant small-signal or nonlinear to use them)")
@@ -628,21 +663,30 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
         results.append(_solve(prob, z0, cfg.max_nfev))
         if progress is not None:
             progress("starts", i + 1, len(z_starts))
-    costs = np.array([c for _, c in results])
+    costs = np.array([c for _, c, _ in results])
     best = int(np.argmin(costs))
     z_best = results[best][0]
     th_best = prob.to_theta(z_best)
     spread = 0.0  # over the starts that reached the best cost (to 1e-3): how flat it is
-    worse = 0
-    for z, cost_i in results:
+    worse = short = 0
+    for z, cost_i, status in results:
         if cost_i > costs[best] * (1.0 + 1e-3) + 1e-300:
-            worse += 1
+            if status == "max_nfev":
+                short += 1
+            else:
+                worse += 1
             continue
         spread = max(spread, float(np.max(np.abs(prob.to_theta(z) - th_best)
                                           / np.maximum(np.abs(th_best), 1e-300))))
     if worse:
         notes.append(f"{worse} of {len(results)} starts ended in a worse local minimum; the "
                      f"best was kept")
+    if short:
+        notes.append(f"{short} of {len(results)} starts had not converged after "
+                     f"{cfg.max_nfev} evaluations (max_nfev) and ended above the best")
+    if results[best][2] == "max_nfev":
+        notes.append(f"the best search had not converged after {cfg.max_nfev} evaluations: "
+                     f"raise max_nfev, or start nearer (--params)")
     if cfg.reweight:
         fitted = runner.run(th_best)
         if fitted is not None:
@@ -655,7 +699,7 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
             prob = _Problem(runner, lo, hi, chans, data, used, sigma)
             stage[0] = "re-weighted"
             prob.tick = tick
-            z_best, _ = _solve(prob, z_best, cfg.max_nfev)
+            z_best, _, _ = _solve(prob, z_best, cfg.max_nfev)
             th_best = prob.to_theta(z_best)
     cov_z, s2, null = _covariance(prob, z_best)
     d = prob.dtheta_dz(z_best)
@@ -684,7 +728,10 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
                      f"noisy rest samples)")
     at_bound = [n for n, v, a, b in zip(names, th_best, lo, hi, strict=True)
                 if v <= a + 1e-6 * (b - a) or v >= b - 1e-6 * (b - a)]
+    undetermined_names = {names[k] for vec in null for k in np.flatnonzero(np.abs(vec) > 1e-6)}
     for n in at_bound:
+        if n in undetermined_names:
+            continue  # its warning says it: the data do not move it
         notes.append(f"{n} ended on a bound of its search interval: widen --bounds {n}=LO:HI "
                      f"or check the model")
     interval = None
@@ -695,6 +742,10 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
         ok = np.all(np.isfinite(boot), axis=1)
         a = (1.0 - cfg.level) / 2.0
         interval = np.quantile(boot[ok], [a, 1.0 - a], axis=0).T if np.any(ok) else None
+        if cfg.bootstrap < 20:
+            notes.append(f"the {100 * cfg.level:g} % intervals are percentiles of only "
+                         f"{cfg.bootstrap} refits, close to their extremes: take 200 or more "
+                         f"(--bootstrap) for intervals to rely on")
         if not np.all(ok):
             notes.append(f"{int(np.count_nonzero(~ok))} of {cfg.bootstrap} bootstrap refits "
                          f"failed and were left out")
@@ -767,7 +818,7 @@ def _bootstrap(prob: _Problem, runner: ModelRunner, fitted: dict[str, FloatArray
         pb = _Problem(runner, prob.to_theta(prob.zlo), prob.to_theta(prob.zhi), prob.channels,
                       data_b, used, prob.sigma)
         try:
-            z, _ = _solve(pb, z_best, cfg.max_nfev)
+            z, _, _ = _solve(pb, z_best, cfg.max_nfev)
             out[i] = pb.to_theta(z)
         except (ValueError, ArithmeticError):
             pass

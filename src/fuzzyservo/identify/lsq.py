@@ -85,6 +85,10 @@ def sum_of_squares(x: FloatArray) -> float:
     return float(_sumsq(np.ascontiguousarray(x, dtype=np.float64)))
 
 
+#: Largest damping (relative to JᵀJ's diagonal): a step this damped moves nothing.
+_MU_MAX = 1e20
+
+
 @dataclass(frozen=True, slots=True, kw_only=True, eq=False)
 class LsqResult:
     """The end of a search."""
@@ -102,10 +106,13 @@ def levenberg_marquardt(fun: Callable[[FloatArray], FloatArray],
                         ftol: float = 1e-10, xtol: float = 1e-10) -> LsqResult:
     """Minimise ½ Σ fun(x)² over lo <= x <= hi.
 
-    Stops when a step lowers the cost by at most ``ftol`` of it, moves every variable by at
-    most ``xtol`` (1 + |x|), no damping finds a lower cost, or ``max_nfev`` evaluations of
-    ``fun`` are spent. ``fun`` may return a constant large vector where it cannot evaluate
-    (the step is then refused like any that does not lower the cost).
+    The damped system is (JᵀJ + μ diag(JᵀJ)) δ = -Jᵀr with a dimensionless μ, 1e-3 at the
+    start (so the first step is nearly Gauss-Newton's, whatever the residuals' scale),
+    updated by the gain ratio (Nielsen). Stops when a step lowers the cost by at most
+    ``ftol`` of it, when the step moves every variable by at most ``xtol`` (1 + |x|), when no
+    damping finds a lower cost, or when ``max_nfev`` evaluations of ``fun`` are spent (the
+    status says which). ``fun`` returns infinite values where it cannot evaluate: the step
+    is refused like any that does not lower the cost.
     """
     lo = np.asarray(lo, dtype=np.float64)
     hi = np.asarray(hi, dtype=np.float64)
@@ -113,7 +120,7 @@ def levenberg_marquardt(fun: Callable[[FloatArray], FloatArray],
     r = fun(x)
     cost = 0.5 * sum_of_squares(r)
     nfev, njev = 1, 0
-    mu = -1.0  # damping; set from the first JᵀJ
+    mu = 1e-3  # damping relative to JᵀJ's diagonal (Marquardt's scaling)
     nu = 2.0
     p = x.size
     while True:
@@ -126,14 +133,12 @@ def levenberg_marquardt(fun: Callable[[FloatArray], FloatArray],
         big = float(max(diag)) if p else 0.0
         if big <= 0.0:
             return LsqResult(x=x, cost=cost, nfev=nfev, njev=njev, status="flat")
-        scale = np.maximum(diag, 1e-12 * big)
+        scale = np.maximum(diag, 1e-12 * big)  # Marquardt's scaling, floored
         # held: at a bound with the descent direction (-g) pointing out of the box
         held = ((x <= lo) & (g > 0.0)) | ((x >= hi) & (g < 0.0))
         free = np.flatnonzero(~held)
         if free.size == 0:
             return LsqResult(x=x, cost=cost, nfev=nfev, njev=njev, status="bound")
-        if mu < 0.0:
-            mu = 1e-3 * float(max(diag[free]))
         accepted = False
         while nfev < max_nfev:
             sub = [[float(a[i, j]) + (mu * float(scale[i]) if i == j else 0.0) for j in free]
@@ -143,6 +148,9 @@ def levenberg_marquardt(fun: Callable[[FloatArray], FloatArray],
             except (ValueError, ArithmeticError):
                 mu *= nu
                 nu *= 2.0
+                if not mu < _MU_MAX:
+                    return LsqResult(x=x, cost=cost, nfev=nfev, njev=njev,
+                                     status="no descent")
                 continue
             step = np.zeros(p)
             step[free] = d_free
@@ -169,7 +177,7 @@ def levenberg_marquardt(fun: Callable[[FloatArray], FloatArray],
                 break
             mu *= nu
             nu *= 2.0
-            if mu > 1e30 * (big + 1.0):
+            if not mu < _MU_MAX:
                 return LsqResult(x=x, cost=cost, nfev=nfev, njev=njev, status="no descent")
         if not accepted:
             return LsqResult(x=x, cost=cost, nfev=nfev, njev=njev, status="max_nfev")
