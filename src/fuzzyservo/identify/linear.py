@@ -51,6 +51,7 @@ from .._typing import ArrayLike, FloatArray
 from ..errors import InputError, ParameterError, SimulationDivergedError
 from ..plant import LinearServo, ServoParams, linearize, with_overrides
 from ..sim import LinearPlant, simulate_open_loop
+from .lsq import LsqResult, covariance, levenberg_marquardt
 
 __all__ = [
     "DEFAULT_FIT",
@@ -219,22 +220,59 @@ def _servo(values: Mapping[str, float], tau_v: float) -> LinearServo:
 # -- the least-squares machinery shared by both fits ---------------------------------------
 
 
-def _jacobian(fun: Callable[[FloatArray], FloatArray], theta: FloatArray,
+def _jacobian(fun: Callable[[FloatArray], FloatArray | None], theta: FloatArray,
               lo: FloatArray, hi: FloatArray) -> FloatArray:
-    """Central differences of ``fun`` at ``theta`` (one-sided at a bound)."""
+    """Central differences of ``fun`` at ``theta`` (one-sided at a bound, or where ``fun``
+    cannot be evaluated on one side: None)."""
     r0 = fun(theta)
+    if r0 is None:
+        raise InputError("the eq. (8) model cannot be simulated at the estimate")
     jac = np.empty((r0.size, theta.size))
     for j in range(theta.size):
         h = 1e-6 * max(1.0, abs(float(theta[j])))
         up, down = theta.copy(), theta.copy()
         up[j] = min(theta[j] + h, hi[j])
         down[j] = max(theta[j] - h, lo[j])
+        r_up, r_down = fun(up), fun(down)
+        if r_up is None:
+            up, r_up = theta, r0
+        if r_down is None:
+            down, r_down = theta, r0
         span = float(up[j] - down[j])
         if span <= 0.0:
             jac[:, j] = 0.0
             continue
-        jac[:, j] = (fun(up) - fun(down)) / span
+        jac[:, j] = (r_up - r_down) / span
     return jac
+
+
+class _Guarded:
+    """``residual`` for :func:`~fuzzyservo.identify.lsq.levenberg_marquardt`: None (for the
+    Jacobian) or infinite residuals (a step the search refuses) where the model cannot be
+    simulated; the last evaluation kept, since the search asks for the Jacobian at the
+    point it evaluated last."""
+
+    def __init__(self, residual: Callable[[FloatArray], FloatArray]) -> None:
+        self.residual = residual
+        self.size = -1
+        self._last: tuple[bytes, FloatArray | None] | None = None
+
+    def __call__(self, theta: FloatArray) -> FloatArray | None:
+        key = np.asarray(theta, dtype=np.float64).tobytes()
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        try:
+            r: FloatArray | None = self.residual(theta)
+        except (ParameterError, SimulationDivergedError):
+            r = None
+        if r is not None:
+            self.size = r.size
+        self._last = (key, r)
+        return r
+
+    def values(self, theta: FloatArray) -> FloatArray:
+        r = self(theta)
+        return np.full(max(self.size, 1), math.inf) if r is None else r
 
 
 def _solve(space: _Space, residual: Callable[[FloatArray], FloatArray],
@@ -243,38 +281,37 @@ def _solve(space: _Space, residual: Callable[[FloatArray], FloatArray],
     """Refine the starts by bounded least squares; the best estimate θ, its covariance (in θ)
     and notes. ``nuisance``: linear parameters ``residual`` projects out (Golub and Pereyra's
     variable projection: the projected Jacobian gives θ's covariance; they cost degrees of
-    freedom)."""
-    from scipy.optimize import least_squares
+    freedom).
 
+    The search (:func:`~fuzzyservo.identify.lsq.levenberg_marquardt`, central-difference
+    Jacobian) and the covariance (:func:`~fuzzyservo.identify.lsq.covariance`) use no BLAS
+    or LAPACK: the same bits on every machine."""
     lo, hi = space.bounds()
-    best: Any = None
+    guarded = _Guarded(residual)
+
+    def jac(theta: FloatArray) -> FloatArray:
+        return _jacobian(guarded, theta, lo, hi)
+
+    best: LsqResult | None = None
     for start in starts:
-        x0 = np.clip(start, lo, hi)
-        try:
-            res = least_squares(residual, x0, bounds=(lo, hi), method="trf", x_scale=1.0,
-                                ftol=1e-13, xtol=1e-13, gtol=1e-13,
-                                max_nfev=200 * (len(space.names) + 1))
-        except (ParameterError, SimulationDivergedError):
+        x0 = np.minimum(np.maximum(start, lo), hi)
+        if guarded(x0) is None:
             continue  # a start whose model cannot be simulated: try the next
+        res = levenberg_marquardt(guarded.values, jac, x0, lo, hi,
+                                  max_nfev=200 * (len(space.names) + 1), ftol=1e-13,
+                                  xtol=1e-13)
         if best is None or res.cost < best.cost:
             best = res
     if best is None:
         raise InputError("the fit failed from every start: no eq. (8) model could be "
                          "simulated for these data")
     theta = np.asarray(best.x, dtype=np.float64)
-    r = residual(theta)
-    jac = _jacobian(residual, theta, lo, hi)
+    r = guarded.values(theta)
     dof = r.size - theta.size - nuisance
-    s2 = float(r @ r) / dof
+    cov, _, null = covariance(jac(theta), r, dof)
     notes: list[str] = []
-    jtj = jac.T @ jac
-    try:
-        cond = float(np.linalg.cond(jtj))
-        cov = np.linalg.inv(jtj) * s2 if cond < 1e14 else np.full_like(jtj, np.inf)
-    except np.linalg.LinAlgError:
-        cov = np.full_like(jtj, np.inf)
-    cov = np.asarray(cov, dtype=np.float64)
-    if not np.all(np.isfinite(cov)):
+    if null.shape[0] or not np.all(np.isfinite(cov)):
+        cov = np.full((theta.size, theta.size), np.inf)
         notes.append("the data do not determine every coefficient together (the Jacobian is "
                      "singular): standard errors are infinite; fit fewer coefficients")
     for j, name in enumerate(space.names):
