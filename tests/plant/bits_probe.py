@@ -78,7 +78,9 @@ def _identify() -> list[str]:
     time_fit = fit_linear_time(rec.t, np.append(drive, drive[-1]), y, params=paper,
                                position=0.5, dt=dt)
     w = np.array([1.0 * 1.2**k for k in range(30)])
-    h = eq8_response(w, servo, 0.0063) * (1.0 + 0.01 * rng.standard_normal(w.size))
+    gain_noise = 1.0 + 0.01 * rng.standard_normal(w.size)  # per value: no complex vector loop
+    h = np.array([v * g for v, g in zip(eq8_response(w, servo, 0.0063).tolist(),
+                                         gain_noise.tolist(), strict=True)])
     freq_fit = fit_linear_frequency(w, h, params=paper)
     return [_digest(fit.estimate, fit.std_error, fit.correlation),
             _digest(time_fit.estimate, time_fit.std_error),

@@ -35,7 +35,7 @@ fit (docs/architecture.md, "Machine-independent results"): sums are sequential
 the search and the covariance are :mod:`fuzzyservo.identify.lsq`'s, the implied
 parameters' propagation uses :mod:`fuzzyservo.plant.dense`, and the frequency residuals
 are written out per frequency in real arithmetic, so that a fit gives the same bits
-whatever BLAS kernel or vector unit runs it (:func:`eq8_response`, for figures, is numpy's).
+whatever BLAS kernel or vector unit runs it.
 
 :func:`implied_parameters` turns a fit into the physical parameters it determines given the
 others (valve.rated_flow from K_o; load.mass or fluid.oil_bulk_modulus from ω_h;
@@ -45,6 +45,7 @@ valve.null_leakage or load.viscous_damping from ζ_h), solved with the package's
 
 from __future__ import annotations
 
+import cmath
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -606,13 +607,27 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
 
 def eq8_response(w: ArrayLike, servo: LinearServo, delay: float = 0.0) -> ComplexArray:
     """Eq. (8)'s frequency response x/u at ``w`` [rad/s] with a transport ``delay`` [s]:
-    complex, in m per unit command per (rad/s) (the integrator included)."""
-    s = 1j * np.asarray(w, dtype=np.float64)
-    wh, zh, wv, zv = servo.omega_0, servo.damping, servo.omega_v, servo.zeta_v
-    den = s * (1.0 + 2.0 * zh * s / wh + (s / wh) ** 2) * (1.0 + 2.0 * zv * s / wv + (s / wv) ** 2)
-    if servo.tau_v > 0.0:
-        den = den * (1.0 + servo.tau_v * s)
-    out: ComplexArray = servo.K_o * np.exp(-s * delay) / den
+    complex, in m per unit command per (rad/s) (the integrator included).
+
+    Computed per frequency as e^{ln H} from the logarithm the frequency fit compares (Python
+    floats and the C library): the same bits on every machine, which numpy's complex loops
+    are not on processors with AVX-512.
+
+    Raises
+    ------
+    ParameterError
+        A frequency that is not finite and > 0.
+    """
+    ww = np.asarray(w, dtype=np.float64)
+    flat = ww.reshape(-1).tolist()
+    bad = [x for x in flat if not (math.isfinite(x) and x > 0.0)]
+    if bad:
+        raise ParameterError(f"eq8_response needs frequencies finite and > 0 rad/s, got "
+                             f"{bad[0]!r}")
+    re, im = _log_eq8(flat, servo, delay)
+    out: ComplexArray = np.array([cmath.rect(math.exp(a), b)
+                                  for a, b in zip(re.tolist(), im.tolist(), strict=True)],
+                                 dtype=np.complex128).reshape(ww.shape)
     return out
 
 
