@@ -42,10 +42,12 @@ from .._io import atomic_write
 from .._typing import FloatArray
 from ..errors import ParameterError
 from ..plant import COMMAND_LIMIT, ServoParams, linearize, with_overrides
+from ..plant.dense import eigvals
 from ..plant.nonlinear import PRESSURE_FLOOR_BAND
 from ..registry import build_plant
 from ..sim import OpenLoopResult, simulate_open_loop
 from ..sim.closed_loop import NonlinearPlant
+from .lsq import gram
 
 __all__ = ["ExperimentDesign", "SENSITIVITY_FIELDS", "describe", "design_experiment"]
 
@@ -170,17 +172,24 @@ class _Plan:
 
 
 def _chirp(plan: _Plan, dt: float) -> tuple[FloatArray, FloatArray]:
-    """Unit log-sweep sin φ(t) over whole cycles and its raised-cosine fade envelope."""
+    """Unit log-sweep sin φ(t) over whole cycles and its raised-cosine fade envelope.
+
+    The transcendentals are the C library's, per sample: numpy's vector ``expm1``, ``sin``
+    and ``cos`` round differently on processors with AVX-512, and the excitation is a
+    result (docs/architecture.md, "Machine-independent results")."""
     n = _samples(plan.chirp_time, dt)
     tc = np.arange(n, dtype=np.float64) * dt
     rate = math.log(plan.f1 / plan.f0) / plan.chirp_time
-    phase = 2.0 * math.pi * plan.f0 * np.expm1(rate * tc) / rate
+    scale = 2.0 * math.pi * plan.f0
+    phase = [scale * math.expm1(rate * v) / rate for v in tc.tolist()]
     env = np.ones(n)
     for fade, where in ((min(2.0 / plan.f0, plan.chirp_time / 4.0), tc),
                         (min(10.0 / plan.f1, plan.chirp_time / 4.0), (n - 1) * dt - tc)):
         inside = where < fade
-        env[inside] = np.minimum(env[inside], 0.5 - 0.5 * np.cos(np.pi * where[inside] / fade))
-    return np.sin(phase), env
+        ramp = np.array([0.5 - 0.5 * math.cos(math.pi * v / fade)
+                         for v in where[inside].tolist()])
+        env[inside] = np.minimum(env[inside], ramp)
+    return np.array([math.sin(v) for v in phase]), env
 
 
 def _nonlinear(params: ServoParams, x0: float) -> NonlinearPlant:
@@ -495,12 +504,21 @@ def _conditions(params: ServoParams, x0: float, u: FloatArray, dt: float,
     jac = np.stack(cols, axis=-1)  # (signal, sample, parameter)
     full = jac.reshape(-1, len(SENSITIVITY_FIELDS))
 
-    def cond(m: FloatArray) -> float:
-        s = np.linalg.svd(m, compute_uv=False)
-        return float(s[0] / s[-1]) if s[-1] > 0.0 else math.inf
+    def gram_of(m: FloatArray) -> FloatArray:
+        a, _ = gram(m, np.zeros(m.shape[0]))  # MᵀM, each entry summed over samples in order
+        return a
 
-    weakest = SENSITIVITY_FIELDS[int(np.argmin(np.sqrt((full**2).sum(axis=0))))]
-    return cond(full), cond(jac[0]), weakest
+    def cond(a: FloatArray) -> float:
+        """κ(M) = sqrt(λ_max/λ_min) of MᵀM (symmetric: real eigenvalues), by plant.dense:
+        no LAPACK, the same bits on every machine. M's condition numbers here are 1e1 to
+        1e5, so MᵀM's (their squares) stay well inside double precision."""
+        lam = [float(v.real) for v in eigvals(a)]
+        top, low = max(lam), min(lam)
+        return math.sqrt(top / low) if low > 0.0 else math.inf
+
+    full_gram = gram_of(full)
+    weakest = SENSITIVITY_FIELDS[int(np.argmin(np.diag(full_gram)))]  # least column norm
+    return cond(full_gram), cond(gram_of(jac[0])), weakest
 
 
 def describe(design: ExperimentDesign) -> list[str]:

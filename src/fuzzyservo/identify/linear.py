@@ -6,7 +6,8 @@ command u (fraction of rated input) to the piston position x [m]::
     X(s)/U(s) = K_o e^{-s τ} / [s (s²/ω_h² + 2 ζ_h s/ω_h + 1)(s²/ω_v² + 2 ζ_v s/ω_v + 1)]
 
 (with the valve's first-order stage τ_v of the parameter set when it has one). Its
-coefficients are fitted by :func:`scipy.optimize.least_squares` from
+coefficients are fitted by bounded least squares
+(:func:`fuzzyservo.identify.lsq.levenberg_marquardt`) from
 
 - **time data** (:func:`fit_linear_time`): an open-loop record of the command and the
   position. The model is the package's own: :meth:`LinearPlant.from_servo` simulated by
@@ -28,6 +29,14 @@ the estimate and s² the residual variance (sum of squares over samples less par
 carried back to SI units by the delta method. They assume independent residuals of equal
 variance (white measurement noise); coloured noise or a model error makes them optimistic.
 
+No BLAS or LAPACK and no numpy vector transcendental is on the path from the data to a
+fit (docs/architecture.md, "Machine-independent results"): sums are sequential
+(:func:`~fuzzyservo.identify.lsq.total`, :func:`~fuzzyservo.identify.lsq.sum_of_squares`),
+the search and the covariance are :mod:`fuzzyservo.identify.lsq`'s, the implied
+parameters' propagation uses :mod:`fuzzyservo.plant.dense`, and the frequency residuals
+are written out per frequency in real arithmetic, so that a fit gives the same bits
+whatever BLAS kernel or vector unit runs it.
+
 :func:`implied_parameters` turns a fit into the physical parameters it determines given the
 others (valve.rated_flow from K_o; load.mass or fluid.oil_bulk_modulus from ω_h;
 valve.null_leakage or load.viscous_damping from ζ_h), solved with the package's own
@@ -36,6 +45,7 @@ valve.null_leakage or load.viscous_damping from ζ_h), solved with the package's
 
 from __future__ import annotations
 
+import cmath
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -50,7 +60,9 @@ from .._io import read_csv_columns
 from .._typing import ArrayLike, FloatArray
 from ..errors import InputError, ParameterError, SimulationDivergedError
 from ..plant import LinearServo, ServoParams, linearize, with_overrides
+from ..plant.dense import matmul, solve
 from ..sim import LinearPlant, simulate_open_loop
+from .lsq import LsqResult, covariance, levenberg_marquardt, sum_of_squares, total
 
 __all__ = [
     "DEFAULT_FIT",
@@ -219,22 +231,59 @@ def _servo(values: Mapping[str, float], tau_v: float) -> LinearServo:
 # -- the least-squares machinery shared by both fits ---------------------------------------
 
 
-def _jacobian(fun: Callable[[FloatArray], FloatArray], theta: FloatArray,
+def _jacobian(fun: Callable[[FloatArray], FloatArray | None], theta: FloatArray,
               lo: FloatArray, hi: FloatArray) -> FloatArray:
-    """Central differences of ``fun`` at ``theta`` (one-sided at a bound)."""
+    """Central differences of ``fun`` at ``theta`` (one-sided at a bound, or where ``fun``
+    cannot be evaluated on one side: None)."""
     r0 = fun(theta)
+    if r0 is None:
+        raise InputError("the eq. (8) model cannot be simulated at the estimate")
     jac = np.empty((r0.size, theta.size))
     for j in range(theta.size):
         h = 1e-6 * max(1.0, abs(float(theta[j])))
         up, down = theta.copy(), theta.copy()
         up[j] = min(theta[j] + h, hi[j])
         down[j] = max(theta[j] - h, lo[j])
+        r_up, r_down = fun(up), fun(down)
+        if r_up is None:
+            up, r_up = theta, r0
+        if r_down is None:
+            down, r_down = theta, r0
         span = float(up[j] - down[j])
         if span <= 0.0:
             jac[:, j] = 0.0
             continue
-        jac[:, j] = (fun(up) - fun(down)) / span
+        jac[:, j] = (r_up - r_down) / span
     return jac
+
+
+class _Guarded:
+    """``residual`` for :func:`~fuzzyservo.identify.lsq.levenberg_marquardt`: None (for the
+    Jacobian) or infinite residuals (a step the search refuses) where the model cannot be
+    simulated; the last evaluation kept, since the search asks for the Jacobian at the
+    point it evaluated last."""
+
+    def __init__(self, residual: Callable[[FloatArray], FloatArray]) -> None:
+        self.residual = residual
+        self.size = -1
+        self._last: tuple[bytes, FloatArray | None] | None = None
+
+    def __call__(self, theta: FloatArray) -> FloatArray | None:
+        key = np.asarray(theta, dtype=np.float64).tobytes()
+        if self._last is not None and self._last[0] == key:
+            return self._last[1]
+        try:
+            r: FloatArray | None = self.residual(theta)
+        except (ParameterError, SimulationDivergedError):
+            r = None
+        if r is not None:
+            self.size = r.size
+        self._last = (key, r)
+        return r
+
+    def values(self, theta: FloatArray) -> FloatArray:
+        r = self(theta)
+        return np.full(max(self.size, 1), math.inf) if r is None else r
 
 
 def _solve(space: _Space, residual: Callable[[FloatArray], FloatArray],
@@ -243,38 +292,37 @@ def _solve(space: _Space, residual: Callable[[FloatArray], FloatArray],
     """Refine the starts by bounded least squares; the best estimate θ, its covariance (in θ)
     and notes. ``nuisance``: linear parameters ``residual`` projects out (Golub and Pereyra's
     variable projection: the projected Jacobian gives θ's covariance; they cost degrees of
-    freedom)."""
-    from scipy.optimize import least_squares
+    freedom).
 
+    The search (:func:`~fuzzyservo.identify.lsq.levenberg_marquardt`, central-difference
+    Jacobian) and the covariance (:func:`~fuzzyservo.identify.lsq.covariance`) use no BLAS
+    or LAPACK: the same bits on every machine."""
     lo, hi = space.bounds()
-    best: Any = None
+    guarded = _Guarded(residual)
+
+    def jac(theta: FloatArray) -> FloatArray:
+        return _jacobian(guarded, theta, lo, hi)
+
+    best: LsqResult | None = None
     for start in starts:
-        x0 = np.clip(start, lo, hi)
-        try:
-            res = least_squares(residual, x0, bounds=(lo, hi), method="trf", x_scale=1.0,
-                                ftol=1e-13, xtol=1e-13, gtol=1e-13,
-                                max_nfev=200 * (len(space.names) + 1))
-        except (ParameterError, SimulationDivergedError):
+        x0 = np.minimum(np.maximum(start, lo), hi)
+        if guarded(x0) is None:
             continue  # a start whose model cannot be simulated: try the next
+        res = levenberg_marquardt(guarded.values, jac, x0, lo, hi,
+                                  max_nfev=200 * (len(space.names) + 1), ftol=1e-13,
+                                  xtol=1e-13)
         if best is None or res.cost < best.cost:
             best = res
     if best is None:
         raise InputError("the fit failed from every start: no eq. (8) model could be "
                          "simulated for these data")
     theta = np.asarray(best.x, dtype=np.float64)
-    r = residual(theta)
-    jac = _jacobian(residual, theta, lo, hi)
+    r = guarded.values(theta)
     dof = r.size - theta.size - nuisance
-    s2 = float(r @ r) / dof
+    cov, _, null = covariance(jac(theta), r, dof)
     notes: list[str] = []
-    jtj = jac.T @ jac
-    try:
-        cond = float(np.linalg.cond(jtj))
-        cov = np.linalg.inv(jtj) * s2 if cond < 1e14 else np.full_like(jtj, np.inf)
-    except np.linalg.LinAlgError:
-        cov = np.full_like(jtj, np.inf)
-    cov = np.asarray(cov, dtype=np.float64)
-    if not np.all(np.isfinite(cov)):
+    if null.shape[0] or not np.all(np.isfinite(cov)):
+        cov = np.full((theta.size, theta.size), np.inf)
         notes.append("the data do not determine every coefficient together (the Jacobian is "
                      "singular): standard errors are infinite; fit fewer coefficients")
     for j, name in enumerate(space.names):
@@ -368,6 +416,20 @@ def _float_array(values: ArrayLike, what: str) -> FloatArray:
 def _first_bad(ok: npt.NDArray[np.bool_]) -> int:
     """Index of the first False, or -1."""
     return int(np.argmin(ok)) if not np.all(ok) else -1
+
+
+def _mean(x: FloatArray) -> float:
+    """The mean, summed in order (:func:`~fuzzyservo.identify.lsq.total`)."""
+    return total(x) / x.size
+
+
+def _geomspace(a: float, b: float, n: int) -> list[float]:
+    """``n`` points from ``a`` to ``b`` > 0 evenly spaced in logarithm, by ``math.exp``
+    (numpy's vector ``power``, behind ``np.geomspace``, rounds differently on processors
+    with AVX-512)."""
+    la, lb = math.log(a), math.log(b)
+    inner = [math.exp(la + (lb - la) * k / (n - 1)) for k in range(1, n - 1)]
+    return [a, *inner, b]
 
 
 def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoParams,
@@ -468,7 +530,7 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
     # the output cannot move before the sample after the first change: those are at rest
     lead = np.arange(n) <= moved[0]
     at_rest = lead & ~skip
-    y_ref = float(np.mean(yy[at_rest])) if np.any(at_rest) else float(yy[np.argmin(skip)])
+    y_ref = _mean(yy[at_rest]) if np.any(at_rest) else float(yy[np.argmin(skip)])
     target = np.where(skip, 0.0, yy - y_ref)
     keep = ~skip
     scale = max(1.0, float(np.max(np.abs(drive))))  # linear: run |u| <= 1 and scale back
@@ -492,27 +554,28 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
 
     def residual(theta: FloatArray) -> FloatArray:
         r = raw(theta)
-        out: FloatArray = r - np.mean(r)  # the rest position at its best (projected out)
+        out: FloatArray = r - _mean(r)  # the rest position at its best (projected out)
         return out
 
-    z = target[keep] - np.mean(target[keep])
+    z = target[keep] - _mean(target[keep])
 
     def cost(values: dict[str, float]) -> tuple[float, float]:
         if "K_o" not in space.names:
             r = (simulate(values) - target)[keep]
-            r = r - np.mean(r)
-            return float(r @ r), values["K_o"]
+            r = r - _mean(r)
+            return sum_of_squares(r), values["K_o"]
         m = simulate(dict(values, K_o=1.0))[keep]
-        m = m - np.mean(m)
-        k_best = float(m @ z) / float(m @ m) if float(m @ m) > 0.0 else 0.0
+        m = m - _mean(m)
+        mm = sum_of_squares(m)
+        k_best = total(m * z) / mm if mm > 0.0 else 0.0
         r = k_best * m - z
-        return float(r @ r), k_best
+        return sum_of_squares(r), k_best
 
     if "K_o" in names:
         # the slowest reading of the gain: y ≈ K_o ∫(u - u_rest) dt
         ramp = np.concatenate([[0.0], np.cumsum(drive) * dt])[keep]
-        ramp = ramp - np.mean(ramp)
-        gain = float(ramp @ z) / max(float(ramp @ ramp), 1e-300)
+        ramp = ramp - _mean(ramp)
+        gain = total(ramp * z) / max(sum_of_squares(ramp), 1e-300)
         if gain <= 0.0:
             raise InputError("the position moves against the command (the gain of y against "
                              "the integral of u - u_rest is negative): check the signs of "
@@ -520,7 +583,7 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
     nyquist = math.pi / dt
     base_w = held["omega_h"]
     grid_w = sorted({*(base_w * f for f in (0.5, 1.0, 2.0)),
-                     *np.geomspace(20.0 / duration, 0.3 * nyquist, 8).tolist()})
+                     *_geomspace(20.0 / duration, 0.3 * nyquist, 8)})
     grid_w = [w for w in grid_w if 0.0 < w < 0.5 * nyquist] or [base_w]
     grid_d = sorted(d for d in {0.0, float(delay), 5 * dt, 20 * dt} if d <= space.delay_max)
     starts = _grid_starts(space, cost, grid_w, grid_d)
@@ -528,14 +591,14 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
     estimate, se, corr, corr_notes = _summarise(space, theta, cov_theta)
     values = space.values(theta)
     r = residual(theta)
-    y_rest = y_ref - float(np.mean(raw(theta)))
+    y_rest = y_ref - _mean(raw(theta))
     notes = _held_notes(space, "eq. (8) of the base parameters") + notes + corr_notes
     if "omega_h" in names and values["omega_h"] > nyquist:
         notes.append(f"omega_h = {values['omega_h']:.4g} rad/s is above the Nyquist "
                      f"frequency {nyquist:.4g} rad/s of the data")
     return LinearFit(names=names, estimate=estimate, std_error=se, correlation=corr,
                      servo=_servo(values, tau_v), delay=values["delay"],
-                     residual_rms=float(np.sqrt(np.mean(r * r))), source="time",
+                     residual_rms=math.sqrt(sum_of_squares(r) / r.size), source="time",
                      n_data=int(r.size), y_rest=y_rest, notes=tuple(notes))
 
 
@@ -544,14 +607,62 @@ def fit_linear_time(t: ArrayLike, u: ArrayLike, y: ArrayLike, *, params: ServoPa
 
 def eq8_response(w: ArrayLike, servo: LinearServo, delay: float = 0.0) -> ComplexArray:
     """Eq. (8)'s frequency response x/u at ``w`` [rad/s] with a transport ``delay`` [s]:
-    complex, in m per unit command per (rad/s) (the integrator included)."""
-    s = 1j * np.asarray(w, dtype=np.float64)
-    wh, zh, wv, zv = servo.omega_0, servo.damping, servo.omega_v, servo.zeta_v
-    den = s * (1.0 + 2.0 * zh * s / wh + (s / wh) ** 2) * (1.0 + 2.0 * zv * s / wv + (s / wv) ** 2)
-    if servo.tau_v > 0.0:
-        den = den * (1.0 + servo.tau_v * s)
-    out: ComplexArray = servo.K_o * np.exp(-s * delay) / den
+    complex, in m per unit command per (rad/s) (the integrator included).
+
+    Computed per frequency as e^{ln H} from the logarithm the frequency fit compares (Python
+    floats and the C library): the same bits on every machine, which numpy's complex loops
+    are not on processors with AVX-512.
+
+    Raises
+    ------
+    ParameterError
+        A frequency that is not finite and > 0.
+    """
+    ww = np.asarray(w, dtype=np.float64)
+    flat = ww.reshape(-1).tolist()
+    bad = [x for x in flat if not (math.isfinite(x) and x > 0.0)]
+    if bad:
+        raise ParameterError(f"eq8_response needs frequencies finite and > 0 rad/s, got "
+                             f"{bad[0]!r}")
+    re, im = _log_eq8(flat, servo, delay)
+    out: ComplexArray = np.array([cmath.rect(math.exp(a), b)
+                                  for a, b in zip(re.tolist(), im.tolist(), strict=True)],
+                                 dtype=np.complex128).reshape(ww.shape)
     return out
+
+
+_TWO_PI = 2.0 * math.pi
+
+
+def _log_eq8(w: Sequence[float], servo: LinearServo, delay: float
+             ) -> tuple[FloatArray, FloatArray]:
+    """ln of eq. (8)'s response at ``w`` [rad/s], its real part (ln of the gain) and an
+    imaginary part (the phase, not wrapped) [rad], each factor's logarithm written out in
+    real arithmetic per frequency (Python floats and the C library's ``log``, ``atan2``):
+    numpy's complex and vector loops round differently on processors with AVX-512, and
+    the fit's residuals must not depend on the machine."""
+    k, wh, zh, wv, zv, tv = (servo.K_o, servo.omega_0, servo.damping, servo.omega_v,
+                             servo.zeta_v, servo.tau_v)
+    lk = math.log(k)
+    re: list[float] = []
+    im: list[float] = []
+    for x in w:
+        a, b = x / wh, x / wv
+        hr, hi = 1.0 - a * a, 2.0 * zh * a  # s²/ω_h² + 2ζ_h s/ω_h + 1 at s = jx
+        vr, vi = 1.0 - b * b, 2.0 * zv * b
+        gain = lk - math.log(x) - math.log(math.hypot(hr, hi)) - math.log(math.hypot(vr, vi))
+        phase = -x * delay - 0.5 * math.pi - math.atan2(hi, hr) - math.atan2(vi, vr)
+        if tv > 0.0:
+            gain -= math.log(math.hypot(1.0, tv * x))
+            phase -= math.atan(tv * x)
+        re.append(gain)
+        im.append(phase)
+    return np.array(re), np.array(im)
+
+
+def _wrap(phase: FloatArray) -> FloatArray:
+    """Phases wrapped into [-π, π] (an exact remainder)."""
+    return np.array([math.remainder(v, _TWO_PI) for v in phase.tolist()])
 
 
 def _check_frf(w: FloatArray, h: ComplexArray, what: str, unit: str = "rad/s",
@@ -690,10 +801,14 @@ def read_frequency_response(path: str | Path, *,
         if units["gain"] == "abs" and not g[k] > 0.0:
             raise InputError(f"{shown}: gain in data row {k + 1} is {float(g[k])!r}; a gain "
                              f"must be > 0 (or give it in dB)")
-    mag = 10.0 ** (g / 20.0) if units["gain"] == "dB" else g
+    # per value with the C library (numpy's vector power rounds otherwise on AVX-512)
+    mag = (np.array([math.pow(10.0, v / 20.0) for v in g.tolist()]) if units["gain"] == "dB"
+           else g)
     ph = np.deg2rad(p) if units["phase"] == "deg" else p
     w = f * factor
-    h = np.asarray(mag * np.exp(1j * ph), dtype=np.complex128)
+    h = np.array([complex(m * math.cos(a), m * math.sin(a))
+                  for m, a in zip(mag.tolist(), ph.tolist(), strict=True)],
+                 dtype=np.complex128)
     _check_frf(w, h, shown, units["frequency"], factor)
     return w, h
 
@@ -751,37 +866,39 @@ def fit_linear_frequency(w: ArrayLike, H: ArrayLike, *, params: ServoParams,  # 
     tau_v = params.valve.tau_v
     space = _Space(names, held, delay_scale=1.0 / float(ww[-1]),
                    delay_max=2.0 * math.pi / float(ww[0]))
-    log_h = np.log(hh)
+    freqs = ww.tolist()
+    # ln H of the data: ln|H| and arg H, per frequency
+    log_h_re = np.array([math.log(math.hypot(h.real, h.imag)) for h in hh.tolist()])
+    log_h_im = np.array([math.atan2(h.imag, h.real) for h in hh.tolist()])
 
-    def model(values: Mapping[str, float]) -> ComplexArray:
-        return eq8_response(ww, _servo(values, tau_v), values["delay"])
+    def log_ratio(values: Mapping[str, float]) -> tuple[FloatArray, FloatArray]:
+        """ln(H_model/H): gain [-] and phase difference wrapped into [-π, π] [rad]."""
+        re, im = _log_eq8(freqs, _servo(values, tau_v), values["delay"])
+        return re - log_h_re, _wrap(im - log_h_im)
 
     def residual(theta: FloatArray) -> FloatArray:
-        z = np.log(model(space.values(theta))) - log_h
-        z = z.real + 1j * np.angle(np.exp(1j * z.imag))  # the phase difference in (-π, π]
-        out: FloatArray = np.concatenate([z.real, z.imag])
+        out: FloatArray = np.concatenate(log_ratio(space.values(theta)))
         return out
 
     def cost(values: dict[str, float]) -> tuple[float, float]:
         k_best = values["K_o"]
         if "K_o" in space.names:
-            z0 = np.log(model(dict(values, K_o=1.0))) - log_h
-            k_best = math.exp(-float(np.mean(z0.real)))
-        z = np.log(model(dict(values, K_o=k_best))) - log_h
-        phase = np.angle(np.exp(1j * z.imag))
-        return float(z.real @ z.real + phase @ phase), k_best
+            z0, _ = log_ratio(dict(values, K_o=1.0))
+            k_best = math.exp(-_mean(z0))
+        gain, phase = log_ratio(dict(values, K_o=k_best))
+        return sum_of_squares(gain) + sum_of_squares(phase), k_best
 
     def delay_guess(wh: float, zh: float) -> float:
         """The slope of the phase that eq. (8) without delay leaves unexplained."""
         base = dict(held, omega_h=wh, zeta_h=zh, delay=0.0)
-        phi = np.unwrap(np.angle(hh / model(base)))
-        phi = phi - 2.0 * math.pi * round(float(phi[0]) / (2.0 * math.pi))
-        tau = -float(ww @ phi) / float(ww @ ww)
+        phi = np.unwrap(-log_ratio(base)[1])
+        phi = phi - _TWO_PI * round(float(phi[0]) / _TWO_PI)
+        tau = -total(ww * phi) / sum_of_squares(ww)
         return min(max(tau, 0.0), space.delay_max)
 
     base_w = held["omega_h"]
     grid_w = sorted({*(base_w * f for f in (0.5, 1.0, 2.0)),
-                     *np.geomspace(float(ww[0]), float(ww[-1]), 8).tolist()})
+                     *_geomspace(float(ww[0]), float(ww[-1]), 8)})
     if "delay" in names:
         grid_d = sorted({0.0, float(delay), *(delay_guess(wh, zh) for wh in grid_w
                                                for zh in (0.05, 0.3, 1.0))})
@@ -791,7 +908,11 @@ def fit_linear_frequency(w: ArrayLike, H: ArrayLike, *, params: ServoParams,  # 
     theta, cov_theta, notes = _solve(space, residual, starts)
     estimate, se, corr, corr_notes = _summarise(space, theta, cov_theta)
     values = space.values(theta)
-    ratio = model(values) / hh
+    # |H_model/H - 1| = |e^z - 1| with z = ln(H_model/H)
+    gain, phase = log_ratio(values)
+    mag = np.array([math.exp(v) for v in gain.tolist()])
+    miss = np.concatenate([mag * np.array([math.cos(v) for v in phase.tolist()]) - 1.0,
+                           mag * np.array([math.sin(v) for v in phase.tolist()])])
     notes = _held_notes(space, "eq. (8) of the base parameters") + notes + corr_notes
     for name in ("omega_h", "omega_v"):
         if name in names and not ww[0] / 3.0 <= values[name] <= 3.0 * ww[-1]:
@@ -799,7 +920,7 @@ def fit_linear_frequency(w: ArrayLike, H: ArrayLike, *, params: ServoParams,  # 
                          f"{ww[0]:.4g} to {ww[-1]:.4g} rad/s")
     return LinearFit(names=names, estimate=estimate, std_error=se, correlation=corr,
                      servo=_servo(values, tau_v), delay=values["delay"],
-                     residual_rms=float(np.sqrt(np.mean(np.abs(ratio - 1.0) ** 2))),
+                     residual_rms=math.sqrt(sum_of_squares(miss) / ww.size),
                      source="frequency", n_data=int(ww.size), y_rest=math.nan,
                      notes=tuple(notes))
 
@@ -1010,12 +1131,12 @@ def implied_estimates(fit: LinearFit, params: ServoParams, position: float, *,
             for i, qi in enumerate(solved):
                 jac[i, j] = (measures[qi](up_p) - measures[qi](dn_p)) / (v + h - lo)
         sub = np.array([[cov_fit[index[a], index[b]] for b in solved] for a in solved])
-        try:
-            g = np.linalg.inv(jac)
-            cov = g @ sub @ g.T
+        try:  # plant.dense: no BLAS or LAPACK (2x2 or 3x3)
+            g = solve(jac, np.eye(len(solved)))
+            cov = matmul(matmul(g, sub), g.T)
             se_of = {q: float(math.sqrt(max(cov[i, i], 0.0))) if math.isfinite(cov[i, i])
                      else math.inf for i, q in enumerate(solved)}
-        except np.linalg.LinAlgError:
+        except ParameterError:  # a singular Jacobian
             pass
     out: list[ImpliedParameter] = []
     for q in ("K_o", "omega_h", "zeta_h"):
