@@ -175,7 +175,7 @@ def test_plot_writes_a_figure(tmp_path: Path) -> None:
      (["--gains", "missing.toml"], "missing.toml"),
      (["--gains", ""], "--gains is empty"),
      (["--gains", "nonexist"], "cannot read gains file 'nonexist'"),
-     (["--open-loop", "--command", "0.1", "--noise-std", "1e-3"], "belong to the closed loop"),
+     (["--open-loop", "--command", "0.1", "--reference", "step:0.1"], "belong to the closed loop"),
      (["--gains", "kp=1"], "--controller")],
 )
 def test_bad_input_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],

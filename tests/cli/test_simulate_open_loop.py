@@ -106,3 +106,46 @@ def test_open_loop_delay_option(tmp_path: Path) -> None:
     # 2.5 samples: between the runs shifted by 2 and by 3 samples, strictly, once moving
     late = range(20, 100)
     assert all(runs["none"][k - 3] < runs["half"][k] < runs["none"][k - 2] for k in late)
+
+
+def test_a_command_file_is_held_per_sample_and_logged_with_noise(tmp_path: Path) -> None:
+    """--command FILE.csv: the same run as the array given to simulate_open_loop; the
+    transducers' noise (seeded) goes on the logged y and pressures, not on the states x, v."""
+    import numpy as np
+
+    from fuzzyservo.sim import simulate_open_loop
+
+    t = np.arange(501) * 1e-3
+    u = np.where((t >= 0.1) & (t < 0.3), 0.2, -0.1)
+    cmd = tmp_path / "cmd.csv"
+    np.savetxt(cmd, np.column_stack([t, u]), delimiter=",", header="t,u", comments="")
+    out = tmp_path / "run.csv"
+    assert main(["simulate", "--open-loop", "--command", str(cmd), "--noise-std", "1e-4",
+                 "--pressure-noise-std", "5e4", "--seed", "9", "--out", str(out)]) == 0
+    d = _read(out)
+    ref = simulate_open_loop(build_plant("nonlinear", paper_params()), u[:-1], duration=0.5)
+    assert d["x"] == list(ref.x) and d["u"][:-1] == list(ref.u)  # bit for bit
+    rng = np.random.default_rng(9)  # the noise: y first, then p_f, then p_n
+    ny = rng.normal(0.0, 1e-4, t.size)
+    npf = rng.normal(0.0, 5e4, t.size)
+    assert np.array_equal(np.array(d["y"]), ref.y + ny)
+    assert np.array_equal(np.array(d["p_f"]), ref.p_f + npf)
+
+
+@pytest.mark.parametrize("rows, extra, match", [
+    ([[0.0, 0.1], [1e-3, 0.1], [3e-3, 0.2]], [], "evenly spaced"),
+    ([[0.0, 0.1], [1e-3, 1.5], [2e-3, 0.2]], [], "u = 1.5 at t = 0.001 s; it must be in"),
+    ([[0.0, 0.1], [2e-3, 0.1], [4e-3, 0.2]], ["--ts", "0.001"], "not --ts 0.001 s"),
+    ([[0.0, 0.1], [1e-3, 0.1], [2e-3, 0.2]], ["--duration", "1"], "holds 3 samples"),
+    ([[0.0, 0.1], [1e-3, 0.1], [2e-3, 0.2]], ["--plant", "linear", "--pressure-noise-std",
+                                               "1"], "has no chamber pressures"),
+])
+def test_bad_command_files_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                    rows: list[list[float]], extra: list[str],
+                                    match: str) -> None:
+    cmd = tmp_path / "cmd.csv"
+    cmd.write_text("t,u\n" + "".join(f"{a!r},{b!r}\n" for a, b in rows))
+    assert main(["simulate", "--open-loop", "--command", str(cmd), *extra, "--out",
+                 str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and match in err[0], err

@@ -185,13 +185,17 @@ def test_small_steps_that_drift_from_the_grid_are_resampled() -> None:
 
 def test_a_given_dt_that_differs_resamples_onto_it() -> None:
     t = np.arange(N) * DT
-    m = measurement_from_arrays(t, 0.5 + 2 * t, u=_step(), dt=5e-4)
-    assert m.dt == 5e-4 and np.array_equal(m.t, np.arange(m.n) * 5e-4)
-    assert m.n == 2 * (N - 1) + 1
+    m = measurement_from_arrays(t, 0.5 + 2 * t, u=_step(), dt=2e-3)
+    assert m.dt == 2e-3 and np.array_equal(m.t, np.arange(m.n) * 2e-3)
+    assert m.n == (N - 1) // 2 + 1
     np.testing.assert_allclose(m.y, 0.5 + 2 * m.t, rtol=0, atol=1e-15)
-    assert any("dt = 0.0005 s given" in note for note in m.notes)
+    assert any("dt = 0.002 s given" in note and "anti-alias" in note for note in m.notes)
     kept = measurement_from_arrays(t, 0.5 + 2 * t, u=_step(), dt=DT)
     assert kept.dt == DT and not any("resampled" in note for note in kept.notes)
+    # finer than logged: interpolated samples share their noise, a fit's errors go wrong
+    with pytest.raises(InputError, match=r"dt = 0.0005 s is finer than the logged step"):
+        measurement_from_arrays(t, 0.5 + 2 * t, u=_step(), dt=5e-4)
+
 
 
 def test_no_time_column_with_dt(tmp_path: Path) -> None:

@@ -198,5 +198,9 @@ def test_bad_data_are_refused_in_one_line():
     with pytest.raises(InputError, match="cannot fit channel 'p_f'"):
         identify(_open_loop_data(BASE, duration=1.5, pressures=False), plant="nonlinear",
                  params=BASE, fit=["load.mass"], channels=["y", "p_f"])
-    with pytest.raises(ParameterError, match="bootstrap must be an integer >= 0"):
+    dead = _open_loop_data(BASE, duration=1.5, pressures=False)
+    dead.y = np.full(dead.y.size, 0.5)
+    with pytest.raises(InputError, match="position never moves .* dead sensor"):
+        identify(dead, plant="nonlinear", params=BASE, fit=["load.mass"])
+    with pytest.raises(ParameterError, match=r"bootstrap \(--bootstrap\) must be an integer >= 0"):
         FitSettings(bootstrap=-1)

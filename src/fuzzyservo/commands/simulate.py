@@ -168,7 +168,9 @@ def _open_loop_command(text: str, ts: float | None) -> tuple[Any, float, float |
     cols = read_csv_columns(Path(text), ("t", "u"), what="command file", min_rows=2)
     t, u = cols["t"], cols["u"]
     steps = np.diff(t)
-    step = float(np.median(steps))
+    # the decimal step the file was written with (a median of differences of decimals
+    # carries their rounding: 0.0010000000000000009 for t = k * 0.001)
+    step = float(f"{float(np.median(steps)):.12g}")
     if not (step > 0.0 and np.all(np.abs(steps - step) <= 1e-6 * step)):
         raise InputError(f"command file {text!r}: the times must be evenly spaced (found steps "
                          f"from {float(steps.min()):g} to {float(steps.max()):g} s)")
@@ -180,7 +182,7 @@ def _open_loop_command(text: str, ts: float | None) -> tuple[Any, float, float |
         raise ParameterError(f"command file {text!r}: u = {float(u[bad[0]])!r} at t = "
                              f"{float(t[bad[0]]):g} s; it must be in [-1, 1] (fraction of "
                              f"rated input)")
-    return np.ascontiguousarray(u), step, float(t[-1] - t[0])
+    return np.ascontiguousarray(u), step, (t.size - 1) * step
 
 
 def _count(text: str) -> int:
@@ -396,6 +398,9 @@ def run(args: argparse.Namespace) -> int:
                                   ("--pressure-noise-std", args.pressure_noise_std, "Pa")):
             if not (math.isfinite(value) and value >= 0.0):
                 raise ParameterError(f"{flag} must be finite and >= 0 {unit}, got {value!r}")
+        if args.pressure_noise_std and args.plant == "linear":
+            raise InputError("--pressure-noise-std: the linear plant (eq. 8) has no chamber "
+                             "pressures; use --plant nonlinear or small-signal")
         command, ts, length = _open_loop_command(args.command, args.ts)
         if args.duration is None and length is not None:
             args.duration = length

@@ -657,7 +657,16 @@ def _uniform(t: FloatArray, channels: dict[str, FloatArray], dt: float | None, s
     jitter = float(np.max(np.abs(steps - med)))
     jitter_ok = jitter <= JITTER * med
     agrees = dt is None or abs(dt - med) <= JITTER * med
+    if dt is not None and dt < med * (1.0 - JITTER):
+        raise InputError(f"{source!r}: dt = {dt:.6g} s is finer than the logged step "
+                         f"{med:.6g} s: interpolating between samples makes neighbouring "
+                         f"samples' noise correlated, and a fit's standard errors wrong; "
+                         f"choose dt >= {med:.6g} s")
     step = dt if dt is not None else (float(t[-1]) / (n - 1) if jitter_ok else med)
+    if dt is None and jitter_ok:  # the decimal step the log was written with
+        decimal = float(f"{step:.12g}")
+        if abs(decimal - step) <= 1e-9 * step:
+            step = decimal
     drift = float(np.max(np.abs(t - np.arange(n) * step)))
     if jitter_ok and agrees and drift <= DRIFT * step:
         notes.append(f"uniform time stamps, kept as logged: dt = {step:.6g} s, {n} samples")

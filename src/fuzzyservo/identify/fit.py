@@ -111,12 +111,14 @@ class FitSettings:
         for name, low in (("starts", 1), ("bootstrap", 0), ("max_nfev", 2)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ParameterError(f"{name} must be an integer >= {low}, got {v!r}")
+                raise ParameterError(f"{name} (--{name.replace('_', '-')}) must be an integer "
+                                     f">= {low}, got {v!r}")
         if self.block is not None and (isinstance(self.block, bool)
                                        or not isinstance(self.block, int) or self.block < 1):
-            raise ParameterError(f"block must be an integer >= 1 sample, got {self.block!r}")
+            raise ParameterError(f"block (--block) must be an integer >= 1 sample, got "
+                                 f"{self.block!r}")
         if not (isinstance(self.level, float | int) and 0.0 < self.level < 1.0):
-            raise ParameterError(f"level must be in (0, 1), got {self.level!r}")
+            raise ParameterError(f"level (--level) must be in (0, 1), got {self.level!r}")
         if self.workers is not None and (isinstance(self.workers, bool)
                                          or not isinstance(self.workers, int)
                                          or self.workers < 1):
@@ -633,6 +635,11 @@ def _identify(m: Any, runner: ModelRunner, params: ServoParams, names: tuple[str
     data = {c: np.ascontiguousarray(getattr(m, c), dtype=np.float64) for c in chans}
     flagged = getattr(m, "flagged", None)
     used = np.ones(m.t.size, dtype=bool) if flagged is None else ~np.asarray(flagged, bool)
+    if not float(np.ptp(np.asarray(m.y, dtype=np.float64)[used])) > 0.0:
+        raise InputError(f"the logged position never moves (always {float(m.y[0]):.6g} m) "
+                         f"while the {'command' if runner.controller is None else 'reference'}"
+                         f" does: a dead sensor or the wrong column (--columns y=NAME); "
+                         f"nothing to fit")
     sigma: dict[str, float] = {}
     for c in chans:
         rng_c = float(np.ptp(data[c][used])) or 1.0

@@ -1,4 +1,4 @@
-"""The offline HTML page of an identification (``fuzzyservo identify ... --report PAGE.html``).
+"""The offline HTML page of an identification (``fuzzyservo identify ... --html PAGE.html``).
 
 Written with the project's one HTML writer (:mod:`fuzzyservo.files.html`): everything is
 embedded (the figure as a base64 PNG), so the page opens without a network connection or any
@@ -199,7 +199,7 @@ def write_report(ident: Any, path: str | Path, *, command: str, data: str,
         SHA-256 of the data file; None: computed from ``data`` when it names a file (else
         "not recorded").
     figure_path : str or Path, optional
-        A PNG of the figure already written (``--figure``), embedded as it is; None or an SVG:
+        A PNG of the figure already written (``--plot``), embedded as it is; None or an SVG:
         the figure is drawn to a temporary PNG and embedded.
 
     Raises
