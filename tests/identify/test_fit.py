@@ -78,6 +78,25 @@ def test_closed_loop_data_are_fitted_through_the_controller():
     np.testing.assert_allclose(res.estimate, [truth.load.mass], rtol=1e-6)
 
 
+def test_a_feed_forward_law_on_steps_gets_the_steps_exact_rates():
+    # simulate gives a multistep its exact rates, zero; differences of the logged samples
+    # would make each jump a spike of velocity and acceleration the controller never saw
+    truth = with_overrides(BASE, {"load.mass": 0.8 * BASE.load.mass})
+    ctl = build_controller("ffpd", {}, dt=DT)
+    plant = build_plant("nonlinear", truth, 0.5)
+    run = simulate(ctl, plant, MultiStep(times=(0.1, 1.0), levels=(0.05, -0.02)),
+                   duration=2.0, delay=truth.delay.transport_delay)
+    m = SimpleNamespace(t=run.t, dt=DT, y=run.y, u=run.u, r=run.r, p_f=None, p_n=None,
+                        flagged=None, rest=100)
+    res = identify(m, plant="nonlinear", params=BASE, fit=["load.mass"], controller=ctl,
+                   settings=FitSettings(starts=1))
+    np.testing.assert_allclose(res.estimate, [truth.load.mass], rtol=1e-6)
+    assert "the reference's rates for the feed-forward: zero (--reference-rates)" in res.notes
+    spiked = identify(m, plant="nonlinear", params=BASE, fit=["load.mass"], controller=ctl,
+                      reference_rates="difference", settings=FitSettings(starts=1))
+    assert abs(spiked.value("load.mass") / truth.load.mass - 1.0) > 1e-3
+
+
 def test_the_axis_file_gives_the_identified_set_bit_for_bit(tmp_path):
     truth = with_overrides(BASE, {"load.mass": 1.1 * BASE.load.mass})
     res = identify(_open_loop_data(truth, noise=1e-3), plant="nonlinear", params=BASE,
