@@ -223,3 +223,19 @@ def test_bad_data_are_refused_in_one_line():
         identify(dead, plant="nonlinear", params=BASE, fit=["load.mass"])
     with pytest.raises(ParameterError, match=r"bootstrap \(--bootstrap\) must be an integer >= 0"):
         FitSettings(bootstrap=-1)
+
+
+def test_read_only_measurements_run_the_loops_compiled_for_simulate():
+    # a Measurement's arrays are read-only, another type to numba: passed on as they are,
+    # they compiled the open loop a second time (seconds of every first fit)
+    from fuzzyservo.control.command import COMMAND_LAW
+    from fuzzyservo.identify import measurement_from_arrays
+    from fuzzyservo.sim import loops
+
+    src = _open_loop_data(BASE, duration=1.5)
+    m = measurement_from_arrays(src.t, src.y, u=src.u, p_f=src.p_f, p_n=src.p_n)
+    assert not m.t.flags.writeable
+    identify(m, plant="nonlinear", params=BASE, fit=["load.mass"],
+             settings=FitSettings(starts=1, max_nfev=3))
+    fn = loops.kernels(COMMAND_LAW).nonlinear_chunk
+    assert len(fn._cache._cache_file._load_index()) == 1

@@ -277,7 +277,9 @@ class ModelRunner:
         self.controller = controller
         self.substep = float(substep)
         self.command_offset = command_offset
-        self.t = np.ascontiguousarray(measurement.t, dtype=np.float64)
+        # writable copies: a read-only array (a Measurement's are) is another type to the
+        # compiled loops, which would compile a second time for it
+        self.t = np.array(measurement.t, dtype=np.float64)
         self.dt = float(measurement.dt)
         rest = max(1, int(getattr(measurement, "rest", 1)))
         self.position = total(np.asarray(measurement.y[:rest], dtype=np.float64)) / rest
@@ -301,7 +303,8 @@ class ModelRunner:
                 raise ParameterError(f"the controller's sample time {controller.dt!r} s differs "
                                      f"from the data's {self.dt!r} s")
             self.u_rest = 0.0
-            r = np.ascontiguousarray(measurement.r, dtype=np.float64)
+            r = np.array(measurement.r, dtype=np.float64)
+            self.r = r
             self.rates_rule = reference_rates
             if reference_rates == "auto":  # steps (piecewise constant): the exact rates, 0
                 moving = int(np.count_nonzero(np.diff(r)))
@@ -344,7 +347,7 @@ class ModelRunner:
                                what="open loop")
             else:
                 raw = run_loop(self.controller, plant,
-                               np.ascontiguousarray(self.m.r, dtype=np.float64), delay=delay,
+                               self.r, delay=delay,
                                disturbance=None, noise=np.empty(0), t=self.t,
                                rates=self.rates)
         except (FuzzyServoError, ValueError, ArithmeticError):
