@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import io
 import math
 import shlex
 import sys
@@ -243,16 +244,16 @@ def _progress(args: argparse.Namespace) -> Iterator[Callable[[str, int, int], No
 
 def _channels(text: str) -> list[str]:
     """``--channels``: signals to fit, each once, at least one."""
-    from ..identify import CHANNELS
+    from ..identify import FIT_CHANNELS
 
     out = [c.strip() for c in text.split(",") if c.strip()]
     if not out:
         raise UsageError(f"--channels names no signal; give one or more of "
-                         f"{', '.join(CHANNELS)}")
+                         f"{', '.join(FIT_CHANNELS)}")
     for c in out:
-        if c not in CHANNELS:
+        if c not in FIT_CHANNELS:
             raise UsageError(f"--channels: unknown signal {c!r}; allowed: "
-                             f"{', '.join(CHANNELS)}")
+                             f"{', '.join(FIT_CHANNELS)}")
         if out.count(c) > 1:
             raise UsageError(f"--channels names {c!r} twice (it would count twice); name each "
                              f"signal once")
@@ -440,7 +441,7 @@ def _load_partial(path: Path, key: str) -> Any:
     from .._io import read_bytes
 
     try:
-        with np.load(io_bytes(read_bytes(path, "bootstrap checkpoint")),
+        with np.load(io.BytesIO(read_bytes(path, "bootstrap checkpoint")),
                      allow_pickle=False) as z:
             saved_key = str(z["key"])
             done = np.array(z["done"], dtype=np.float64)
@@ -452,13 +453,6 @@ def _load_partial(path: Path, key: str) -> Any:
                          f"data (its options or the data's digest differ); run the same "
                          f"command, or delete it and run without --resume")
     return done
-
-
-def io_bytes(data: bytes) -> Any:
-    """A binary stream over ``data`` (numpy's loader reads file objects)."""
-    import io
-
-    return io.BytesIO(data)
 
 
 def _save_partial(path: Path, key: str, done: Any) -> None:

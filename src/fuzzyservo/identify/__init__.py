@@ -11,8 +11,8 @@ from .advice import CORRELATION_LIMIT, identifiability_warnings, remedy
 from .data import Measurement, measurement_from_arrays, parse_mapping, read_measurement
 from .design import ExperimentDesign, design_experiment
 from .fit import (
-    CHANNELS,
     DEFAULT_STARTS,
+    FIT_CHANNELS,
     FitSettings,
     Identification,
     ModelRunner,
@@ -23,7 +23,7 @@ from .fit import (
 from .record import record_document, render_axis_toml, write_axis_toml
 
 __all__ = [
-    "CHANNELS",
+    "FIT_CHANNELS",
     "CORRELATION_LIMIT",
     "DEFAULT_STARTS",
     "ExperimentDesign",

@@ -50,7 +50,7 @@ from ..sim.references import reference_rates as rates_of
 from .lsq import covariance, levenberg_marquardt, sum_of_squares, total
 
 __all__ = [
-    "CHANNELS",
+    "FIT_CHANNELS",
     "DEFAULT_STARTS",
     "FitSettings",
     "Identification",
@@ -62,7 +62,7 @@ __all__ = [
 ]
 
 #: The signals compared, in order, with their units.
-CHANNELS: dict[str, str] = {"y": "m", "p_f": "Pa", "p_n": "Pa"}
+FIT_CHANNELS: dict[str, str] = {"y": "m", "p_f": "Pa", "p_n": "Pa"}
 
 #: Starts of the local search by default: the parameter set's values and two seeded draws.
 DEFAULT_STARTS = 3
@@ -145,7 +145,7 @@ class Identification:
     mode: str  #: "open loop" or "closed loop"
     position: float  #: start position of the model [m]
     t: FloatArray  #: sample times [s]
-    channels: tuple[str, ...]  #: signals compared (``CHANNELS`` names)
+    channels: tuple[str, ...]  #: signals compared (``FIT_CHANNELS`` names)
     measured: dict[str, FloatArray]  #: each channel's logged trace [SI]
     fitted: dict[str, FloatArray]  #: each channel's trace of the identified model [SI]
     start_fit: dict[str, FloatArray]  #: each channel's trace of the starting model [SI]
